@@ -1,0 +1,56 @@
+"""dispeval_ros: an ament_python package that also installs with plain ``pip install .``."""
+
+from __future__ import annotations
+
+import importlib.util
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "dispeval_ros"
+
+
+def requirements() -> list[str]:
+    """Runtime requirements; OpenCV only when no cv2 (e.g. ROS's python3-opencv) is present."""
+    required = [
+        "numpy>=1.21",
+        "numba>=0.56",
+        "rosbags>=0.9.20",
+        "mcap>=1.1",
+        "mcap-ros2-support>=0.5",
+    ]
+    if importlib.util.find_spec("cv2") is None:
+        required.append("opencv-python-headless>=4.5")
+    return required
+
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*", "bench"]),
+    package_data={PACKAGE: ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", glob("launch_scripts/*.launch.py")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/bags", glob("bags/*.mcap") + glob("bags/*.db3") + glob("bags/*.yaml")),
+    ],
+    python_requires=">=3.10",
+    install_requires=requirements(),
+    extras_require={
+        "test": ["pytest>=7", "hypothesis>=6", "pillow>=9"],
+        "dev": ["pytest>=7", "hypothesis>=6", "pillow>=9", "ruff>=0.5", "mypy>=1.8"],
+    },
+    zip_safe=True,
+    maintainer="dispeval_ros developers",
+    maintainer_email="dispeval-ros@example.org",
+    description="Evaluate stereo disparity maps by set-partition criteria, SZE/BMPRE and Pareto models.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "dispeval = dispeval_ros.cli.main:main",
+        ],
+    },
+)
