@@ -1,0 +1,1 @@
+"""dispeval_ros: judge stereo methods by their disparity maps (placeholder, filled below)."""

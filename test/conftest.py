@@ -1,0 +1,32 @@
+"""Shared fixtures: the real stereo data in ../shared/data.
+
+Tests that need the data use the ``shared_data`` fixture. Where the data is absent (a user's
+clone) they skip with the reason; with ``DISPEVAL_REQUIRE_DATA=1`` (set by ``.ci/run``) a
+missing data folder is a failure, so CI never passes by skipping.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _data_root() -> Path:
+    configured = os.environ.get("DISPEVAL_DATA")
+    return Path(configured) if configured else REPO_ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """Root of the real data sets, or skip (fail under DISPEVAL_REQUIRE_DATA=1) if absent."""
+    root = _data_root()
+    if not (root / "README.md").is_file():
+        reason = f"real stereo data not found at {root} (set DISPEVAL_DATA to its folder)"
+        if os.environ.get("DISPEVAL_REQUIRE_DATA") == "1":
+            pytest.fail(f"DISPEVAL_REQUIRE_DATA=1 but {reason}")
+        pytest.skip(reason)
+    return root
