@@ -1,1 +1,45 @@
-"""dispeval_ros: judge stereo methods by their disparity maps (placeholder, filled below)."""
+"""dispeval_ros: judge stereo correspondence methods by their disparity maps.
+
+Set-partition evaluation criteria, the depth-aware SZE and BMPRE measures beside the classic
+ones, and Pareto-dominance models (A*, A* Groups, front reduction). The public API::
+
+    from dispeval_ros import Evaluator, Camera
+    ev = Evaluator(criteria=("all", "visibility", "depth"))
+    scores = ev.score(gt, est, camera=Camera(f=721.5, baseline=0.54))
+    scores["interior"]["sze"], scores["interior"]["n"]
+"""
+
+from dispeval_ros.core import (
+    Camera,
+    Evaluator,
+    ModelResult,
+    Partition,
+    Reference,
+    Scores,
+    astar_groups,
+    evaluate_models,
+    front_reduction,
+    measure_consistency,
+    middlebury_ranks,
+    pareto_front,
+)
+from dispeval_ros.errors import DispevalError
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Camera",
+    "DispevalError",
+    "Evaluator",
+    "ModelResult",
+    "Partition",
+    "Reference",
+    "Scores",
+    "__version__",
+    "astar_groups",
+    "evaluate_models",
+    "front_reduction",
+    "measure_consistency",
+    "middlebury_ranks",
+    "pareto_front",
+]

@@ -1,0 +1,48 @@
+"""Pure evaluation math: criteria, measures and models. No files, no ROS.
+
+Everything here takes numpy arrays and small records and returns numbers, so every front
+end (files, bags, ROS topics, DDS) shares one tested implementation.
+"""
+
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.core.criteria import CRITERION_SETS, CriterionSet, Partition, build_partition
+from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, POLICIES, Evaluator, Reference
+from dispeval_ros.core.measures import DEFAULT_MEASURES, HIGHER_IS_BETTER, Scores, parse_measures
+from dispeval_ros.core.models import (
+    ModelResult,
+    Reduction,
+    astar_groups,
+    dominates,
+    evaluate_models,
+    front_reduction,
+    interpretation,
+    measure_consistency,
+    middlebury_ranks,
+    pareto_front,
+)
+
+__all__ = [
+    "CRITERION_SETS",
+    "DEFAULT_CRITERIA",
+    "DEFAULT_MEASURES",
+    "HIGHER_IS_BETTER",
+    "POLICIES",
+    "Camera",
+    "CriterionSet",
+    "Evaluator",
+    "ModelResult",
+    "Partition",
+    "Reduction",
+    "Reference",
+    "Scores",
+    "astar_groups",
+    "build_partition",
+    "dominates",
+    "evaluate_models",
+    "front_reduction",
+    "interpretation",
+    "measure_consistency",
+    "middlebury_ranks",
+    "pareto_front",
+    "parse_measures",
+]

@@ -1,0 +1,133 @@
+"""Argument parsing shared by the commands: criteria, measures, policy, camera."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator
+from dispeval_ros.errors import ConfigurationError
+
+
+def comma_list(text: str) -> list[str]:
+    """``a,b c`` style lists: commas or repeated words."""
+    return [part for part in text.replace(",", " ").split() if part]
+
+
+def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
+    """Options that configure an :class:`Evaluator` (same names in every command)."""
+    group = parser.add_argument_group("evaluation")
+    group.add_argument(
+        "--criteria",
+        nargs="+",
+        default=list(DEFAULT_CRITERIA),
+        metavar="SET",
+        help=f"criterion sets: {', '.join(CRITERION_SETS)} (default: {' '.join(DEFAULT_CRITERIA)}); "
+        "'legacy' adds the overlapping Middlebury nonocc/all/disc",
+    )
+    group.add_argument(
+        "--measures",
+        nargs="+",
+        default=None,
+        metavar="M",
+        help="measures (default: all): bmp bmp_count bad_X mae mse rmse mre sze sze_mean bmpre "
+        "bmpre_mean d1 aNN density",
+    )
+    group.add_argument(
+        "--missing",
+        choices=sorted(POLICIES),
+        default="interpolate",
+        help="missing-estimate policy (default: interpolate, KITTI's background interpolation)",
+    )
+    group.add_argument(
+        "--delta", type=float, default=1.0, help="bad-pixel threshold δ in px (default 1)"
+    )
+    group.add_argument(
+        "--mu", type=float, default=0.01, help="SZE division guard μ in px (default 0.01)"
+    )
+    group.add_argument(
+        "--depth-ranges",
+        default=None,
+        metavar="A-B,...",
+        help="metric depth criteria instead of 3-means, e.g. 0-10,10-30,30-inf (camera unit)",
+    )
+
+
+def add_camera_options(parser: argparse.ArgumentParser) -> None:
+    """Camera from a calibration file or explicit values."""
+    group = parser.add_argument_group("camera (for SZE in metres and metric depth ranges)")
+    group.add_argument(
+        "--calib", type=Path, help="calib.txt (Middlebury/ETH3D), KITTI calib, or Q.dat"
+    )
+    group.add_argument("--focal", type=float, help="focal length f in px")
+    group.add_argument("--baseline", type=float, help="baseline B (metres)")
+    group.add_argument(
+        "--doffs", type=float, default=0.0, help="x-difference of principal points (px)"
+    )
+
+
+def parse_depth_ranges(text: str | None) -> list[tuple[float, float]] | None:
+    """``0-10,10-30,30-inf`` → [(0, 10), (10, 30), (30, inf)]."""
+    if not text:
+        return None
+    ranges = []
+    for part in comma_list(text):
+        pieces = part.split("-")
+        try:
+            if len(pieces) != 2:
+                raise ValueError(part)
+            ranges.append(
+                (float(pieces[0]), math.inf if pieces[1] in ("inf", "") else float(pieces[1]))
+            )
+        except ValueError:
+            raise ConfigurationError(
+                f"depth range '{part}' is not of the form FROM-TO (e.g. 0-10 or 30-inf)"
+            ) from None
+    return ranges
+
+
+def evaluator_from_args(
+    args: argparse.Namespace, roi_names: dict[int, str] | None = None
+) -> Evaluator:
+    """The evaluator the options describe."""
+    criteria: list[str] = []
+    for item in args.criteria:
+        criteria.extend(comma_list(item))
+    measures: list[str] | None = None
+    if args.measures:
+        measures = []
+        for item in args.measures:
+            measures.extend(comma_list(item))
+    return Evaluator(
+        criteria=criteria,
+        measures=measures,
+        missing=args.missing,
+        delta=args.delta,
+        mu=args.mu,
+        depth_ranges=parse_depth_ranges(args.depth_ranges),
+        roi_names=roi_names,
+    )
+
+
+def camera_from_args(args: argparse.Namespace) -> Camera | None:
+    """Camera from ``--calib`` or ``--focal/--baseline/--doffs`` (None if neither)."""
+    from dispeval_ros.io import read_calib
+
+    explicit = args.focal is not None or args.baseline is not None
+    if args.calib is not None and explicit:
+        raise ConfigurationError("give either --calib or --focal/--baseline, not both")
+    if args.calib is not None:
+        return read_calib(args.calib)
+    if explicit:
+        if args.focal is None or args.baseline is None:
+            raise ConfigurationError("--focal and --baseline go together (and --doffs if not 0)")
+        return Camera(f=args.focal, baseline=args.baseline, doffs=args.doffs)
+    return None
+
+
+def objective_measures(measures: Sequence[str]) -> list[str]:
+    """Measures that form model objectives: SZE and BMPRE where chosen, else all lower-is-better."""
+    preferred = [m for m in ("sze", "bmpre") if m in measures]
+    return preferred or [m for m in measures if m != "density"]

@@ -1,0 +1,173 @@
+"""``dispeval eval``: score one or more estimated maps against a ground truth."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from dispeval_ros.cli import common
+from dispeval_ros.cli.output import print_json
+from dispeval_ros.cli.summary import models_text, scores_text
+from dispeval_ros.core import Camera, Scores, evaluate_models
+from dispeval_ros.core.objectives import objective_matrix
+from dispeval_ros.errors import ConfigurationError, DispevalError
+
+HELP = "score estimated disparity maps against ground truth, by criterion"
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``eval``."""
+    parser = subparsers.add_parser(
+        "eval",
+        help=HELP,
+        description=HELP + ". With several estimates, also ranks the "
+        "methods with A* Groups over the SZE and BMPRE objectives of every criterion.",
+    )
+    source = parser.add_argument_group("inputs")
+    source.add_argument("--gt", type=Path, help="ground-truth disparity (PFM, PNG, NPY/NPZ)")
+    source.add_argument(
+        "--est",
+        action="append",
+        required=True,
+        metavar="[NAME=]FILE",
+        help="an estimated disparity map; repeat for several methods (name defaults to the file stem)",
+    )
+    source.add_argument(
+        "--scene", type=Path, help="a dataset scene folder: GT, masks and camera from it"
+    )
+    source.add_argument(
+        "--gt-scale", type=float, help="divide GT PNG values by this (16-bit default 256)"
+    )
+    source.add_argument("--est-scale", type=float, help="divide estimate PNG values by this")
+    source.add_argument(
+        "--gt-right", type=Path, help="right-view GT (for occlusion by left-right check)"
+    )
+    source.add_argument(
+        "--mask",
+        action="append",
+        default=[],
+        metavar="NAME=FILE",
+        help="official mask: all=, nonocc= or disc= (255 = inside)",
+    )
+    source.add_argument(
+        "--roi", type=Path, help="region-of-interest mask or label image (criterion set 'roi')"
+    )
+    source.add_argument(
+        "--roi-labels",
+        metavar="V=NAME,...",
+        help="name the label image's values, e.g. 1=road,2=vehicle",
+    )
+    common.add_evaluation_options(parser)
+    common.add_camera_options(parser)
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.set_defaults(run=run)
+
+
+def _named(spec: str) -> tuple[str, Path]:
+    if "=" in spec:
+        name, _, path = spec.partition("=")
+        if not name:
+            raise ConfigurationError(f"empty method name in --est '{spec}'")
+        return name, Path(path)
+    return Path(spec).stem, Path(spec)
+
+
+def _roi_names(text: str | None) -> dict[int, str] | None:
+    if not text:
+        return None
+    names = {}
+    for part in common.comma_list(text):
+        value, _, name = part.partition("=")
+        if not value.strip().isdigit() or not name:
+            raise ConfigurationError(f"--roi-labels entry '{part}' is not VALUE=NAME (e.g. 1=road)")
+        names[int(value)] = name
+    return names
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the inputs, score every estimate, print tables (and models) or JSON."""
+    from dispeval_ros.io import load_scene, read_disparity, read_mask
+
+    camera: Camera | None = None
+    masks: dict[str, np.ndarray] = {}
+    gt_right = None
+    if args.scene is not None:
+        scene = load_scene(args.scene)
+        gt, camera, masks, gt_right = scene.gt, scene.camera, dict(scene.masks), scene.gt_right
+        gt_name = str(args.scene)
+        if args.gt is not None:
+            raise ConfigurationError("give either --scene or --gt, not both")
+    elif args.gt is not None:
+        gt = read_disparity(args.gt, scale=args.gt_scale)
+        gt_name = str(args.gt)
+    else:
+        raise ConfigurationError("give the ground truth with --gt FILE or --scene DIR")
+    camera = common.camera_from_args(args) or camera
+    for spec in args.mask:
+        name, path = _named(spec)
+        masks[name] = read_mask(path) == 255
+    if args.gt_right is not None:
+        gt_right = read_disparity(args.gt_right, scale=args.gt_scale)
+    roi = read_mask(args.roi) if args.roi is not None else None
+
+    evaluator = common.evaluator_from_args(args, _roi_names(args.roi_labels))
+    try:
+        reference = evaluator.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
+    except DispevalError as error:
+        raise type(error)(f"{gt_name}: {error}") from None
+    results: dict[str, Scores] = {}
+    for spec in args.est:
+        name, path = _named(spec)
+        if name in results:
+            raise ConfigurationError(
+                f"two estimates are named '{name}'; use NAME=FILE to tell them apart"
+            )
+        try:
+            results[name] = evaluator.score(reference, read_disparity(path, scale=args.est_scale))
+        except DispevalError as error:
+            message = str(error)
+            raise type(error)(message if str(path) in message else f"{path}: {message}") from None
+
+    measures = list(evaluator.measures)
+    objectives_from = common.objective_measures(measures)
+    first = next(iter(results.values()))
+    comparable = [c for c in first.criteria if c not in first.overlapping]
+    model = None
+    if len(results) > 1:
+        methods, names, matrix = objective_matrix(results, objectives_from, comparable)
+        model = (names, evaluate_models(methods, matrix))
+    if args.json:
+        document: dict[str, object] = {
+            "frames": [{"method": name, "criteria": s.to_dict()} for name, s in results.items()],
+            "camera": None
+            if camera is None
+            else {"f": camera.f, "baseline": camera.baseline, "doffs": camera.doffs},
+            "sze_relative": camera is None,
+            "missing": evaluator.missing,
+            "overlapping": list(first.overlapping),
+            "partition": reference.partition.counts(),
+        }
+        if model is not None:
+            document["objectives"] = model[0]
+            document["models"] = model[1].to_dict()
+        print_json(document)
+        return 0
+    print(
+        f"ground truth: {gt_name}  ({reference.shape[1]}×{reference.shape[0]}, "
+        f"{int(np.count_nonzero(reference.partition.cells >= 0))} valid points)"
+    )
+    print(
+        "camera: "
+        + (
+            "none — SZE is relative (f·B = 1)"
+            if camera is None
+            else f"f = {camera.f:g} px, B = {camera.baseline:g} {camera.unit}, doffs = {camera.doffs:g} px"
+        )
+    )
+    print(f"missing estimates: {evaluator.missing}\n")
+    print(scores_text(results, measures, first.overlapping))
+    if model is not None:
+        print("\n" + models_text(model[1], model[0]))
+    return 0

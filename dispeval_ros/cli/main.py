@@ -1,0 +1,47 @@
+"""The ``dispeval`` command: argument parsing and error reporting only."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from dispeval_ros import __version__
+from dispeval_ros.cli import demo_cmd, eval_cmd, models_cmd
+from dispeval_ros.errors import DispevalError
+
+COMMANDS = (eval_cmd, models_cmd, demo_cmd)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser (one sub-command per module in :data:`COMMANDS`)."""
+    parser = argparse.ArgumentParser(
+        prog="dispeval",
+        description="Judge stereo methods by their disparity maps: set-partition criteria "
+        "(visibility, depth, ROI), SZE/BMPRE and classic measures, Pareto models (A* Groups).",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run a command; user mistakes print one line and exit with status 2."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args))
+    except DispevalError as error:
+        print(f"dispeval {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"dispeval {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

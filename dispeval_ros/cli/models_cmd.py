@@ -1,0 +1,91 @@
+"""``dispeval models``: A*, A* Groups, front reduction and Middlebury ranks of a scores CSV."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from dispeval_ros.cli.output import print_json, table
+from dispeval_ros.cli.summary import models_text
+from dispeval_ros.core import astar_groups, evaluate_models, measure_consistency
+from dispeval_ros.errors import ConfigurationError
+
+HELP = "compare methods by Pareto dominance over the objectives of a scores CSV"
+MODELS = ("groups", "astar", "middlebury")
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``models``."""
+    parser = subparsers.add_parser(
+        "models",
+        help=HELP,
+        description=HELP + ". The CSV has a 'method' column and one column per objective; "
+        "lower is better in every column.",
+    )
+    parser.add_argument("scores", type=Path, metavar="SCORES.csv")
+    parser.add_argument(
+        "--model",
+        choices=MODELS,
+        default="groups",
+        help="groups: A* Groups with the front reduction (default); astar: the first front only; "
+        "middlebury: average ranks",
+    )
+    parser.add_argument(
+        "--consistency",
+        nargs=2,
+        metavar=("MEASURE_A", "MEASURE_B"),
+        help="share of method pairs whose A* Groups relation agrees between the columns ending in "
+        "/MEASURE_A and those ending in /MEASURE_B (e.g. sze bmp)",
+    )
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.set_defaults(run=run)
+
+
+def _consistency(path: Path, measures: list[str], objectives: list[str], matrix: np.ndarray) -> float:
+    groups = []
+    for measure in measures:
+        columns = [
+            i
+            for i, name in enumerate(objectives)
+            if name == measure or name.endswith("/" + measure)
+        ]
+        if not columns:
+            raise ConfigurationError(
+                f"{path}: no column is named '{measure}' or ends with '/{measure}'"
+            )
+        groups.append(astar_groups(matrix[:, columns]))
+    return measure_consistency(groups[0], groups[1])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the CSV, run the models, print."""
+    from dispeval_ros.io.tables import read_objectives_csv
+
+    methods, objectives, matrix = read_objectives_csv(args.scores)
+    try:
+        result = evaluate_models(methods, matrix)
+    except ConfigurationError as error:
+        raise ConfigurationError(f"{args.scores}: {error}") from None
+    consistency = None
+    if args.consistency:
+        consistency = _consistency(args.scores, list(args.consistency), objectives, matrix)
+    if args.json:
+        document = result.to_dict()
+        if consistency is not None:
+            document["consistency"] = {"measures": list(args.consistency), "share": consistency}
+        print_json(document)
+        return 0
+    if args.model == "groups":
+        print(models_text(result, objectives))
+    elif args.model == "astar":
+        print(f"A* ({len(result.astar)} of {len(methods)} methods): {', '.join(result.astar)}")
+        print(result.interpretation.splitlines()[0])
+    else:
+        order = sorted(methods, key=lambda m: result.middlebury[m])
+        print(table(["method", "avg rank"], [[m, result.middlebury[m]] for m in order]))
+    if consistency is not None:
+        a, b = args.consistency
+        print(f"\nmeasure consistency {a} vs {b}: {consistency:.4f} of method pairs agree")
+    return 0

@@ -1,0 +1,403 @@
+"""Evaluation criteria as a set partition of the valid ground-truth points (METHOD.md §2).
+
+A *criterion set* (``all``, ``visibility``, ``depth``, ``roi``, ``legacy``) gives every valid
+point one class. Several sets are combined into one :class:`Partition`: a single label
+image of *cells* (one cell per combination of classes) plus a membership matrix saying
+which cells make up each criterion. Scoring then accumulates per cell in one pass, and every
+criterion's sums are sums over its cells: no per-criterion masks or copies, and the
+overlapping legacy Middlebury criteria fit the same scheme.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from dispeval_ros.core import kernels
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.errors import ConfigurationError, EmptyGroundTruthError, ShapeMismatchError
+
+CRITERION_SETS = ("all", "visibility", "depth", "roi", "legacy")
+VISIBILITY = ("occluded", "boundary", "interior")
+DEPTH = ("near", "mid", "far")
+LEGACY = ("nonocc", "all", "disc")
+NOT_EVALUATED = -1
+
+
+@dataclass(frozen=True)
+class CriterionSet:
+    """One family of criteria: a class index per valid pixel and the criteria it forms.
+
+    ``membership[i, c]`` says whether class ``c`` belongs to criterion ``criteria[i]``; for
+    a partitioning set it is the identity, for the legacy Middlebury set it overlaps.
+    """
+
+    name: str
+    labels: np.ndarray
+    criteria: tuple[str, ...]
+    membership: np.ndarray
+    overlapping: bool = False
+    source: str = ""
+
+    @property
+    def classes(self) -> int:
+        """Number of classes (columns of ``membership``)."""
+        return int(self.membership.shape[1])
+
+
+def _partitioning(
+    name: str, labels: np.ndarray, criteria: tuple[str, ...], source: str = ""
+) -> CriterionSet:
+    return CriterionSet(
+        name,
+        labels.astype(np.int32, copy=False),
+        criteria,
+        np.eye(len(criteria), dtype=bool),
+        source=source,
+    )
+
+
+def valid_ground_truth(gt: np.ndarray, all_mask: np.ndarray | None = None) -> np.ndarray:
+    """Valid GT points: finite and > 0, restricted to an official ``all`` mask if given."""
+    valid = np.isfinite(gt) & (gt > 0)
+    if all_mask is not None:
+        _check_shape("the 'all' mask", all_mask, gt)
+        valid &= all_mask.astype(bool, copy=False)
+    return valid
+
+
+def _check_shape(what: str, array: np.ndarray, gt: np.ndarray) -> None:
+    if array.shape != gt.shape:
+        raise ShapeMismatchError(f"{what} is {_size(array)} but the ground truth is {_size(gt)}")
+
+
+def _size(array: np.ndarray) -> str:
+    return "×".join(str(n) for n in array.shape)
+
+
+def all_set(valid: np.ndarray) -> CriterionSet:
+    """The single criterion ``all``: every valid point."""
+    return _partitioning("all", np.zeros(valid.shape, np.int32), ("all",), "valid GT")
+
+
+def occlusion(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    *,
+    nonocc: np.ndarray | None = None,
+    gt_right: np.ndarray | None = None,
+    tolerance: float = 1.0,
+) -> tuple[np.ndarray, str]:
+    """Occluded valid points and where that knowledge came from.
+
+    In order of preference: an official non-occlusion mask, a left-right check against the
+    right-view GT (``|D_L(x,y) − D_R(x − D_L, y)| > 1`` or the target outside the image), or
+    z-buffer forward warping of the left GT alone.
+    """
+    if nonocc is not None:
+        _check_shape("the 'nonocc' mask", nonocc, gt)
+        return valid & ~nonocc.astype(bool, copy=False), "official mask"
+    if gt_right is not None:
+        _check_shape("the right-view ground truth", gt_right, gt)
+        height, width = gt.shape
+        columns = np.arange(width, dtype=np.float64)[None, :]
+        safe = np.where(valid, gt, 0.0)
+        target = np.floor(columns - safe + 0.5).astype(np.int64)
+        inside = (target >= 0) & (target < width)
+        rows = np.broadcast_to(np.arange(height)[:, None], gt.shape)
+        right = gt_right[rows, np.clip(target, 0, width - 1)].astype(np.float64)
+        right = np.where(np.isfinite(right), right, 0.0)
+        mismatch = np.abs(safe - right) > 1.0
+        return valid & (~inside | mismatch), "right-view GT"
+    gt64 = np.ascontiguousarray(gt, dtype=np.float64)
+    return kernels.forward_warp_occlusion(gt64, valid, float(tolerance)), "left GT z-buffer"
+
+
+def discontinuities(
+    gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, width: int = 9
+) -> np.ndarray:
+    """Points within a ``width``-square of a GT jump larger than ``gap`` between 4-neighbours.
+
+    Only jumps between two valid points count, so the border of unknown GT is no boundary.
+    """
+    d = np.where(valid, gt, 0.0).astype(np.float32)
+    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
+    horizontal = valid[:, 1:] & valid[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) > gap)
+    vertical = valid[1:, :] & valid[:-1, :] & (np.abs(d[1:, :] - d[:-1, :]) > gap)
+    jumps[:, 1:] |= horizontal
+    jumps[:, :-1] |= horizontal
+    jumps[1:, :] |= vertical
+    jumps[:-1, :] |= vertical
+    if width > 1:
+        jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
+    return jumps.astype(bool)
+
+
+def visibility_set(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    *,
+    nonocc: np.ndarray | None = None,
+    disc: np.ndarray | None = None,
+    gt_right: np.ndarray | None = None,
+    gap: float = 2.0,
+    width: int = 9,
+    tolerance: float = 1.0,
+) -> CriterionSet:
+    """``occluded`` / ``boundary`` / ``interior`` (with official masks: all∖nonocc, disc, nonocc∖disc)."""
+    occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
+    if disc is not None:
+        _check_shape("the 'disc' mask", disc, gt)
+        near_jump = disc.astype(bool, copy=False)
+        source += ", official disc mask"
+    else:
+        near_jump = discontinuities(gt, valid, gap, width)
+    labels = np.full(gt.shape, 2, np.int32)
+    labels[near_jump] = 1
+    labels[occluded] = 0
+    return _partitioning("visibility", labels, VISIBILITY, source)
+
+
+def kmeans_thresholds(
+    gt: np.ndarray, valid: np.ndarray, max_iterations: int = 100
+) -> tuple[float, float]:
+    """Deterministic 1-D 3-means of the valid GT disparities: the two decision thresholds.
+
+    Lloyd's algorithm from centroids at 1/6, 1/2 and 5/6 of the value range. It first
+    converges on a fine histogram (exact per-bin sums, so cheap iterations), then iterates
+    on the exact values until the centroids no longer change. A value equal to a threshold
+    goes to the lower (farther) cluster.
+    """
+    if not valid.any():
+        raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
+    gt = np.ascontiguousarray(gt)
+    lo = float(gt[valid].min())
+    hi = float(gt[valid].max())
+    centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
+    bin_counts, bin_sums = kernels.histogram_sums(gt, valid, lo, hi, _KMEANS_BINS)
+    occupied = bin_counts > 0
+    bin_counts, bin_sums = bin_counts[occupied], bin_sums[occupied]
+    bin_means = bin_sums / bin_counts
+    for _ in range(max_iterations):
+        updated = _lloyd_step(centroids, bin_means, bin_counts, bin_sums)
+        if np.array_equal(updated, centroids):
+            break
+        centroids = updated
+    for _ in range(max_iterations):
+        low, high = _midpoints(centroids)
+        counts, sums = kernels.kmeans_1d_pass(gt, valid, low, high)
+        updated = np.where(counts > 0, sums / np.maximum(counts, 1.0), centroids)
+        if np.array_equal(updated, centroids):
+            break
+        centroids = updated
+    return _midpoints(centroids)
+
+
+_KMEANS_BINS = 8192
+
+
+def _midpoints(centroids: np.ndarray) -> tuple[float, float]:
+    return float((centroids[0] + centroids[1]) / 2), float((centroids[1] + centroids[2]) / 2)
+
+
+def _lloyd_step(
+    centroids: np.ndarray, means: np.ndarray, counts: np.ndarray, sums: np.ndarray
+) -> np.ndarray:
+    """One Lloyd step over weighted points (histogram bins represented by their mean)."""
+    low, high = _midpoints(centroids)
+    cluster = np.where(means <= low, 0, np.where(means <= high, 1, 2))
+    cluster_counts = np.bincount(cluster, weights=counts, minlength=3)
+    cluster_sums = np.bincount(cluster, weights=sums, minlength=3)
+    return np.where(cluster_counts > 0, cluster_sums / np.maximum(cluster_counts, 1.0), centroids)
+
+
+def depth_set(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    *,
+    camera: Camera | None = None,
+    ranges: Sequence[tuple[float, float]] | None = None,
+    names: Sequence[str] | None = None,
+) -> CriterionSet:
+    """``near`` / ``mid`` / ``far`` by 3-means of the disparities, or by metric depth ranges.
+
+    Ranges are ``(from, to)`` in the camera's unit, contiguous, from 0 to ``inf``; points
+    with ``d + doffs <= 0`` (infinitely far) fall in the last range.
+    """
+    if ranges is None:
+        low, high = kmeans_thresholds(gt, valid)
+        labels = np.where(gt > high, 0, np.where(gt > low, 1, 2)).astype(np.int32)
+        return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
+    if camera is None:
+        raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")
+    edges = _range_edges(ranges)
+    criteria = tuple(names) if names else tuple(_range_name(a, b, camera.unit) for a, b in ranges)
+    if len(criteria) != len(ranges):
+        raise ConfigurationError(f"{len(ranges)} depth ranges but {len(criteria)} names")
+    denominator = np.where(valid, gt, 0.0).astype(np.float64) + camera.doffs
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = np.where(denominator > 0, camera.fb / denominator, np.inf)
+    labels = np.searchsorted(edges, depth, side="right").astype(np.int32) - 1
+    labels = np.clip(labels, 0, len(criteria) - 1)
+    return _partitioning("depth", labels, criteria, "metric depth ranges")
+
+
+def _range_edges(ranges: Sequence[tuple[float, float]]) -> np.ndarray:
+    if not ranges:
+        raise ConfigurationError("depth ranges are empty; give e.g. 0-10,10-30,30-inf")
+    starts = [float(a) for a, _ in ranges]
+    stops = [float(b) for _, b in ranges]
+    if (
+        starts[0] != 0.0
+        or stops[-1] != np.inf
+        or any(a != b for a, b in zip(stops[:-1], starts[1:], strict=True))
+        or any(a >= b for a, b in zip(starts, stops, strict=True))
+    ):
+        shown = ", ".join(f"{a:g}-{b:g}" for a, b in ranges)
+        raise ConfigurationError(
+            f"depth ranges must be contiguous and increasing from 0 to inf, got {shown}"
+        )
+    return np.array(starts, dtype=np.float64)
+
+
+def _range_name(start: float, stop: float, unit: str) -> str:
+    return f"{start:g}+{unit}" if stop == np.inf else f"{start:g}-{stop:g}{unit}"
+
+
+def roi_set(
+    valid: np.ndarray,
+    roi: np.ndarray,
+    names: Mapping[int, str] | None = None,
+) -> CriterionSet:
+    """``roi`` / ``elsewhere`` from a mask, or named classes of a label image.
+
+    With ``names`` (label value → class name) every listed value is a criterion and all
+    other values form ``unlabelled``.
+    """
+    if roi.shape != valid.shape:
+        raise ShapeMismatchError(
+            f"the region-of-interest image is {_size(roi)} but the ground truth is {_size(valid)}"
+        )
+    if not names:
+        labels = np.where(roi.astype(bool, copy=False), 0, 1).astype(np.int32)
+        return _partitioning("roi", labels, ("roi", "elsewhere"), "mask")
+    values = sorted(names)
+    criteria = (*(names[v] for v in values), "unlabelled")
+    if len(set(criteria)) != len(criteria):
+        raise ConfigurationError(f"label names must be unique, got {', '.join(criteria)}")
+    lookup = np.full(int(max(int(roi.max()), *values)) + 1, len(values), np.int32)
+    lookup[np.asarray(values, dtype=np.int64)] = np.arange(len(values), dtype=np.int32)
+    labels = lookup[np.clip(roi.astype(np.int64), 0, None)]
+    return _partitioning("roi", labels, criteria, "label image")
+
+
+def legacy_set(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    *,
+    nonocc: np.ndarray | None = None,
+    disc: np.ndarray | None = None,
+    gt_right: np.ndarray | None = None,
+    gap: float = 2.0,
+    width: int = 9,
+    tolerance: float = 1.0,
+) -> CriterionSet:
+    """The overlapping Middlebury criteria ``nonocc`` ⊂ ``all`` ⊃ ``disc`` (for comparison only)."""
+    visibility = visibility_set(
+        gt,
+        valid,
+        nonocc=nonocc,
+        disc=disc,
+        gt_right=gt_right,
+        gap=gap,
+        width=width,
+        tolerance=tolerance,
+    )
+    # classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
+    membership = np.array([[False, True, True], [True, True, True], [False, True, False]])
+    return CriterionSet(
+        "legacy", visibility.labels, LEGACY, membership, overlapping=True, source=visibility.source
+    )
+
+
+@dataclass(frozen=True)
+class Partition:
+    """Criteria of one GT map as cells: built once, used for every method scored on that GT.
+
+    ``cells`` labels every pixel with its cell (``-1``: not evaluated); ``order`` lists the
+    evaluated pixel indices grouped by cell, ``offsets[c]:offsets[c+1]`` being cell ``c``;
+    ``membership[i, c]`` says whether cell ``c`` is part of criterion ``criteria[i]``.
+    """
+
+    cells: np.ndarray
+    criteria: tuple[str, ...]
+    membership: np.ndarray
+    order: np.ndarray
+    offsets: np.ndarray
+    overlapping: tuple[str, ...]
+    sources: Mapping[str, str]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image size (rows, columns)."""
+        return (int(self.cells.shape[0]), int(self.cells.shape[1]))
+
+    def counts(self) -> dict[str, int]:
+        """Number of points per criterion."""
+        per_cell = np.diff(self.offsets).astype(np.int64)
+        return {
+            name: int(per_cell[self.membership[i]].sum()) for i, name in enumerate(self.criteria)
+        }
+
+    def mask(self, criterion: str) -> np.ndarray:
+        """Boolean image of one criterion (for display and tests, not for scoring)."""
+        index = self.criteria.index(criterion)
+        cells_in = np.flatnonzero(self.membership[index])
+        return np.isin(self.cells, cells_in)
+
+
+def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partition:
+    """Combine criterion sets into cells (the product of their classes) over the valid points."""
+    if not sets:
+        raise ConfigurationError("no criterion set given; choose from " + ", ".join(CRITERION_SETS))
+    cells = np.zeros(valid.shape, np.int32)
+    stride = 1
+    for criterion_set in sets:
+        if criterion_set.classes > 1:
+            cells += criterion_set.labels * np.int32(stride)
+        stride *= criterion_set.classes
+    n_cells = stride
+    cells[~valid] = NOT_EVALUATED
+    criteria: list[str] = []
+    rows: list[np.ndarray] = []
+    overlapping: list[str] = []
+    sources: dict[str, str] = {}
+    cell_ids = np.arange(n_cells)
+    stride = 1
+    for criterion_set in sets:
+        classes = (cell_ids // stride) % criterion_set.classes
+        stride *= criterion_set.classes
+        sources[criterion_set.name] = criterion_set.source
+        for i, name in enumerate(criterion_set.criteria):
+            row = criterion_set.membership[i][classes]
+            if name in criteria:
+                if not np.array_equal(rows[criteria.index(name)], row):
+                    raise ConfigurationError(f"two criterion sets define '{name}' differently")
+                continue
+            criteria.append(name)
+            rows.append(row)
+            if criterion_set.overlapping:
+                overlapping.append(name)
+    order, offsets = kernels.counting_order(cells, n_cells)
+    return Partition(
+        cells=cells,
+        criteria=tuple(criteria),
+        membership=np.array(rows, dtype=bool),
+        order=order,
+        offsets=offsets,
+        overlapping=tuple(overlapping),
+        sources=sources,
+    )

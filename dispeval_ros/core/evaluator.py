@@ -1,0 +1,344 @@
+"""The scoring engine: GT-side preparation once per ground-truth map, one fused pass per method."""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dispeval_ros.core import criteria as crit
+from dispeval_ros.core import kernels
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.core.measures import (
+    FIELDS,
+    Scores,
+    parse_measures,
+    quantile_level,
+    thresholds_for,
+)
+from dispeval_ros.errors import (
+    ConfigurationError,
+    EmptyGroundTruthError,
+    InputError,
+    ShapeMismatchError,
+)
+
+POLICIES = {
+    "interpolate": kernels.POLICY_INTERPOLATE,
+    "thesis": kernels.POLICY_THESIS,
+    "ignore": kernels.POLICY_IGNORE,
+}
+DEFAULT_CRITERIA = ("all", "visibility", "depth")
+
+
+def as_disparity(array: object, what: str) -> np.ndarray:
+    """A 2-D float32 C-contiguous disparity map, or a one-line error saying what came instead."""
+    if not isinstance(array, np.ndarray):
+        try:
+            array = np.asarray(array)
+        except (TypeError, ValueError) as error:
+            raise InputError(f"{what} is not an array: {error}") from None
+    if array.ndim != 2:
+        raise InputError(f"{what} must be a 2-D disparity map, got an array of shape {array.shape}")
+    if array.dtype.kind not in "fiu" or array.dtype.itemsize > 8:
+        raise InputError(f"{what} must be a real-valued disparity map, got dtype {array.dtype}")
+    return np.ascontiguousarray(array, dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A ground-truth map made ready for scoring: its partition and GT-side terms.
+
+    Build it with :meth:`Evaluator.reference` and pass it to :meth:`Evaluator.score` in
+    place of the GT to score many methods against the same map without redoing any GT work.
+    """
+
+    gt: np.ndarray
+    partition: crit.Partition
+    camera: Camera | None
+    gt_sorted: np.ndarray
+    inv_gt_sorted: np.ndarray
+    depth_gt_sorted: np.ndarray
+    fb: float
+    depth_offset: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image size (rows, columns)."""
+        return self.partition.shape
+
+
+class Evaluator:
+    """Scores estimated disparity maps against ground truth by criterion (METHOD.md §1–3).
+
+    >>> ev = Evaluator(criteria=("all", "visibility", "depth"))
+    >>> scores = ev.score(gt, est, camera=Camera(f=721.5, baseline=0.54))  # doctest: +SKIP
+    >>> scores["interior"]["sze"], scores["interior"]["n"]  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        criteria: Sequence[str] = DEFAULT_CRITERIA,
+        measures: Sequence[str] | None = None,
+        missing: str = "interpolate",
+        delta: float = 1.0,
+        mu: float = 0.01,
+        *,
+        boundary_gap: float = 2.0,
+        boundary_width: int = 9,
+        occlusion_tolerance: float = 1.0,
+        depth_ranges: Sequence[tuple[float, float]] | None = None,
+        roi_names: Mapping[int, str] | None = None,
+        cache_size: int = 4,
+    ) -> None:
+        if isinstance(criteria, str):
+            criteria = (criteria,)
+        unknown = [c for c in criteria if c not in crit.CRITERION_SETS]
+        if unknown or not criteria:
+            raise ConfigurationError(
+                f"unknown criterion set '{', '.join(unknown) or '(none)'}'; "
+                f"choose from {', '.join(crit.CRITERION_SETS)}"
+            )
+        if missing not in POLICIES:
+            raise ConfigurationError(
+                f"unknown missing-estimate policy '{missing}'; choose from {', '.join(POLICIES)}"
+            )
+        for name, value in (("delta", delta), ("mu", mu)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigurationError(f"{name} must be a positive number, got {value!r}")
+        self.criteria = tuple(dict.fromkeys(criteria))
+        self.measures = parse_measures(measures)
+        self.missing = missing
+        self.delta = float(delta)
+        self.mu = float(mu)
+        self.boundary_gap = float(boundary_gap)
+        self.boundary_width = int(boundary_width)
+        self.occlusion_tolerance = float(occlusion_tolerance)
+        self.depth_ranges = list(depth_ranges) if depth_ranges else None
+        self.roi_names = dict(roi_names) if roi_names else None
+        self.thresholds = thresholds_for(self.measures, self.delta)
+        self._quantiles = [m for m in self.measures if quantile_level(m) is not None]
+        self._cache: OrderedDict[int, tuple[tuple[object, ...], Reference]] = OrderedDict()
+        self._cache_size = cache_size
+        self._local = threading.local()
+
+    # -- ground-truth side ------------------------------------------------------------------
+
+    def reference(
+        self,
+        gt: np.ndarray,
+        camera: Camera | None = None,
+        *,
+        masks: Mapping[str, np.ndarray] | None = None,
+        gt_right: np.ndarray | None = None,
+        roi: np.ndarray | None = None,
+    ) -> Reference:
+        """Partition a GT map and compute its GT-side terms (once per GT map)."""
+        gt = as_disparity(gt, "the ground truth")
+        masks = dict(masks or {})
+        unknown = set(masks) - {"all", "nonocc", "disc"}
+        if unknown:
+            raise ConfigurationError(
+                f"unknown mask name(s) {', '.join(sorted(unknown))}; known: all, nonocc, disc"
+            )
+        bool_masks = {name: self._mask(name, mask, gt) for name, mask in masks.items()}
+        right = None if gt_right is None else as_disparity(gt_right, "the right-view ground truth")
+        valid = crit.valid_ground_truth(gt, bool_masks.get("all"))
+        if not valid.any():
+            raise EmptyGroundTruthError(
+                "the ground truth has no valid point (every value is NaN, inf or ≤ 0"
+                + (" inside the 'all' mask)" if "all" in bool_masks else ")")
+            )
+        sets = [
+            self._criterion_set(name, gt, valid, camera, bool_masks, right, roi)
+            for name in self.criteria
+        ]
+        partition = crit.build_partition(valid, sets)
+        gt_sorted = gt.ravel()[partition.order]
+        gt64 = gt_sorted.astype(np.float64)
+        fb = camera.fb if camera else 1.0
+        doffs = camera.doffs if camera else 0.0
+        depth_offset = doffs + self.mu
+        return Reference(
+            gt=gt,
+            partition=partition,
+            camera=camera,
+            gt_sorted=gt_sorted,
+            inv_gt_sorted=(1.0 / gt64).astype(np.float32),
+            depth_gt_sorted=fb / (gt64 + depth_offset),
+            fb=fb,
+            depth_offset=depth_offset,
+        )
+
+    @staticmethod
+    def _mask(name: str, mask: np.ndarray, gt: np.ndarray) -> np.ndarray:
+        mask = np.asarray(mask)
+        if mask.shape != gt.shape:
+            raise ShapeMismatchError(
+                f"the '{name}' mask is {'×'.join(map(str, mask.shape))} but the ground truth is "
+                f"{'×'.join(map(str, gt.shape))}"
+            )
+        return mask.astype(bool, copy=False)
+
+    def _criterion_set(
+        self,
+        name: str,
+        gt: np.ndarray,
+        valid: np.ndarray,
+        camera: Camera | None,
+        masks: Mapping[str, np.ndarray],
+        gt_right: np.ndarray | None,
+        roi: np.ndarray | None,
+    ) -> crit.CriterionSet:
+        visibility_options = {
+            "nonocc": masks.get("nonocc"),
+            "disc": masks.get("disc"),
+            "gt_right": gt_right,
+            "gap": self.boundary_gap,
+            "width": self.boundary_width,
+            "tolerance": self.occlusion_tolerance,
+        }
+        if name == "all":
+            return crit.all_set(valid)
+        if name == "visibility":
+            return crit.visibility_set(gt, valid, **visibility_options)  # type: ignore[arg-type]
+        if name == "legacy":
+            return crit.legacy_set(gt, valid, **visibility_options)  # type: ignore[arg-type]
+        if name == "depth":
+            return crit.depth_set(gt, valid, camera=camera, ranges=self.depth_ranges)
+        if roi is None:
+            raise ConfigurationError(
+                "the 'roi' criterion set needs a region-of-interest mask or label image"
+            )
+        return crit.roi_set(valid, np.asarray(roi), self.roi_names)
+
+    def _cached_reference(
+        self,
+        gt: np.ndarray,
+        camera: Camera | None,
+        masks: Mapping[str, np.ndarray] | None,
+        gt_right: np.ndarray | None,
+        roi: np.ndarray | None,
+    ) -> Reference:
+        """The reference of ``gt``, reused while the same, unchanged GT comes again."""
+        extras = (camera, id(masks) if masks else None, id(gt_right), id(roi))
+        key = id(gt)
+        hit = self._cache.get(key)
+        if hit is not None:
+            cached_extras, reference = hit
+            same_content = reference.gt.shape == np.shape(gt) and np.array_equal(reference.gt, gt)
+            if cached_extras == extras and same_content:
+                self._cache.move_to_end(key)
+                return reference
+        reference = self.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
+        # keep a private copy so a caller changing its array in place invalidates the entry
+        reference = Reference(**{**reference.__dict__, "gt": reference.gt.copy()})
+        self._cache[key] = (extras, reference)
+        while len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        return reference
+
+    # -- method side ----------------------------------------------------------------------
+
+    def score(
+        self,
+        gt: np.ndarray | Reference,
+        est: np.ndarray,
+        camera: Camera | None = None,
+        *,
+        masks: Mapping[str, np.ndarray] | None = None,
+        gt_right: np.ndarray | None = None,
+        roi: np.ndarray | None = None,
+        est_range: tuple[float, float] | None = None,
+    ) -> Scores:
+        """Score one estimated map: criterion → measure → value (``"n"``: point count).
+
+        ``gt`` is a GT map (its partition is cached while it stays the same) or a
+        :class:`Reference`. ``est_range`` is a DisparityImage's ``(min, max)`` disparity;
+        estimates outside it are missing.
+        """
+        if isinstance(gt, Reference):
+            reference = gt
+        else:
+            reference = self._cached_reference(
+                as_disparity(gt, "the ground truth"), camera, masks, gt_right, roi
+            )
+        estimate = as_disparity(est, "the estimate")
+        if estimate.shape != reference.shape:
+            raise ShapeMismatchError(
+                f"the estimate is {estimate.shape[0]}×{estimate.shape[1]} but the ground truth is "
+                f"{reference.shape[0]}×{reference.shape[1]}"
+            )
+        work = self.normalise(estimate, est_range)
+        partition = reference.partition
+        cell_sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
+        kernels.accumulate_cells(
+            work.ravel(),
+            partition.order,
+            partition.offsets,
+            reference.gt_sorted,
+            reference.inv_gt_sorted,
+            reference.depth_gt_sorted,
+            reference.fb,
+            reference.depth_offset,
+            self.thresholds,
+            self.missing == "ignore",
+            cell_sums,
+        )
+        sums = partition.membership.astype(np.float64) @ cell_sums
+        quantiles = self._quantile_values(reference, work) if self._quantiles else {}
+        return Scores(
+            criteria=partition.criteria,
+            measures=self.measures,
+            sums=sums,
+            thresholds=self.thresholds,
+            quantiles=quantiles,
+            relative=reference.camera is None,
+            overlapping=partition.overlapping,
+            policy=self.missing,
+        )
+
+    def normalise(
+        self, estimate: np.ndarray, est_range: tuple[float, float] | None = None
+    ) -> np.ndarray:
+        """The estimate with validity in the sign bit and the missing policy applied.
+
+        The returned buffer is reused by the next call in the same thread.
+        """
+        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        buffer = getattr(self._local, "work", None)
+        if buffer is None or buffer.shape != estimate.shape:
+            buffer = np.empty(estimate.shape, dtype=np.float32)
+            self._local.work = buffer
+        kernels.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
+        return buffer
+
+    def _quantile_values(
+        self, reference: Reference, work: np.ndarray
+    ) -> dict[str, dict[str, float]]:
+        """ETH3D-style error quantiles: the value at index ⌊N·q/100⌋ of the sorted errors."""
+        partition = reference.partition
+        raw = work.ravel()[partition.order].astype(np.float64)
+        errors = np.abs(np.abs(raw) - reference.gt_sorted)
+        keep = raw > 0 if self.missing == "ignore" else np.ones(raw.shape, bool)
+        cell_of = np.repeat(np.arange(partition.offsets.shape[0] - 1), np.diff(partition.offsets))
+        result: dict[str, dict[str, float]] = {}
+        for index, criterion in enumerate(partition.criteria):
+            selected = errors[partition.membership[index][cell_of] & keep]
+            values: dict[str, float] = {}
+            if selected.size:
+                levels = {name: quantile_level(name) or 0.0 for name in self._quantiles}
+                positions = {
+                    name: min(math.floor(selected.size * level / 100.0), selected.size - 1)
+                    for name, level in levels.items()
+                }
+                ordered = np.partition(selected, sorted(set(positions.values())))
+                values = {name: float(ordered[position]) for name, position in positions.items()}
+            else:
+                values = dict.fromkeys(self._quantiles, math.nan)
+            result[criterion] = values
+        return result

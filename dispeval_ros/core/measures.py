@@ -1,0 +1,211 @@
+"""Error measures derived from per-criterion sums (METHOD.md §3, §4).
+
+Scoring accumulates sums (counts, error sums, squared sums, relative sums, depth terms, bad
+counts) per criterion; every measure is derived from them here. Sequence-level scores are
+therefore exact: sums of sums, never averages of per-frame means.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dispeval_ros.core import kernels as k
+from dispeval_ros.errors import ConfigurationError
+
+DEFAULT_BAD_THRESHOLDS = (0.5, 2.0, 4.0)
+DEFAULT_QUANTILES = (50, 90, 95, 99)
+DEFAULT_MEASURES = (
+    "bmp",
+    "bmp_count",
+    "bad_0.5",
+    "bad_2",
+    "bad_4",
+    "mae",
+    "mse",
+    "rmse",
+    "mre",
+    "sze",
+    "sze_mean",
+    "bmpre",
+    "bmpre_mean",
+    "d1",
+    "a50",
+    "a90",
+    "a95",
+    "a99",
+    "density",
+)
+SUM_MEASURES = ("sze", "bmpre", "bmp_count")
+HIGHER_IS_BETTER = ("density",)
+_SIMPLE = frozenset(
+    {
+        "bmp",
+        "bmp_count",
+        "mae",
+        "mse",
+        "rmse",
+        "mre",
+        "sze",
+        "sze_mean",
+        "bmpre",
+        "bmpre_mean",
+        "d1",
+        "density",
+    }
+)
+_BAD = re.compile(r"^bad_(\d+(?:\.\d+)?)$")
+_QUANTILE = re.compile(r"^a(\d{1,2}(?:\.\d+)?)$")
+
+
+def bad_threshold(name: str) -> float | None:
+    """The threshold of a ``bad_X`` measure name, else None."""
+    match = _BAD.match(name)
+    return float(match.group(1)) if match else None
+
+
+def quantile_level(name: str) -> float | None:
+    """The percentage of an ``aNN`` quantile measure name, else None."""
+    match = _QUANTILE.match(name)
+    if not match:
+        return None
+    level = float(match.group(1))
+    return level if 0 < level < 100 else None
+
+
+def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
+    """Validate measure names (``bad_X`` and ``aNN`` take any threshold / level)."""
+    if names is None:
+        return DEFAULT_MEASURES
+    chosen: list[str] = []
+    for name in names:
+        if name in _SIMPLE or bad_threshold(name) is not None or quantile_level(name) is not None:
+            if name not in chosen:
+                chosen.append(name)
+            continue
+        raise ConfigurationError(
+            f"unknown measure '{name}'; known: {', '.join(DEFAULT_MEASURES)} "
+            "(bad_X for any threshold X, aNN for any quantile NN)"
+        )
+    if not chosen:
+        raise ConfigurationError("no measure chosen")
+    return tuple(chosen)
+
+
+def thresholds_for(measures: Sequence[str], delta: float) -> np.ndarray:
+    """The kernel's threshold vector: δ first, then each ``bad_X`` threshold, padded with inf."""
+    extra = sorted({t for t in (bad_threshold(m) for m in measures) if t is not None})
+    if len(extra) > k.MAX_THRESHOLDS - 1:
+        raise ConfigurationError(
+            f"at most {k.MAX_THRESHOLDS - 1} bad_X thresholds at once, got {len(extra)}"
+        )
+    values = [float(delta), *extra]
+    return np.array(values + [math.inf] * (k.MAX_THRESHOLDS - len(values)), dtype=np.float64)
+
+
+FIELDS = k.FIELD_BAD + k.MAX_THRESHOLDS
+
+
+def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
+    return scale * numerator / denominator if denominator > 0 else math.nan
+
+
+def measure_from_sums(name: str, sums: np.ndarray, thresholds: np.ndarray) -> float:
+    """One measure of one criterion from its accumulated sums (``nan`` where undefined)."""
+    n_eval = float(sums[k.FIELD_EVAL])
+    simple = {
+        "bmp": lambda: _ratio(sums[k.FIELD_BAD], n_eval, 100.0),
+        "bmp_count": lambda: float(sums[k.FIELD_BAD]),
+        "mae": lambda: _ratio(sums[k.FIELD_SUM_E], n_eval),
+        "mse": lambda: _ratio(sums[k.FIELD_SUM_E2], n_eval),
+        "rmse": lambda: math.sqrt(_ratio(sums[k.FIELD_SUM_E2], n_eval)),
+        "mre": lambda: _ratio(sums[k.FIELD_SUM_REL], n_eval),
+        "sze": lambda: float(sums[k.FIELD_SZE]),
+        "sze_mean": lambda: _ratio(sums[k.FIELD_SZE], n_eval),
+        "bmpre": lambda: float(sums[k.FIELD_BMPRE]),
+        "bmpre_mean": lambda: _ratio(sums[k.FIELD_BMPRE], n_eval),
+        "d1": lambda: _ratio(sums[k.FIELD_D1], n_eval, 100.0),
+        "density": lambda: _ratio(sums[k.FIELD_VALID], sums[k.FIELD_N]),
+    }
+    if name in simple:
+        return float(simple[name]())
+    threshold = bad_threshold(name)
+    if threshold is not None:
+        column = int(np.flatnonzero(thresholds[1:] == threshold)[0]) + 1
+        return _ratio(sums[k.FIELD_BAD + column], n_eval, 100.0)
+    raise ConfigurationError(f"measure '{name}' is not derived from sums")
+
+
+@dataclass
+class Scores(Mapping[str, Mapping[str, float]]):
+    """Scores of one method on one frame (or summed over frames), by criterion.
+
+    ``scores[criterion][measure]``; ``scores[criterion]["n"]`` is the number of points.
+    ``sums`` (criteria × fields) is what sequences add up. ``relative`` is True when no
+    camera was known, so SZE is in units of ``f·B = 1``.
+    """
+
+    criteria: tuple[str, ...]
+    measures: tuple[str, ...]
+    sums: np.ndarray
+    thresholds: np.ndarray
+    quantiles: dict[str, dict[str, float]] = field(default_factory=dict)
+    relative: bool = False
+    overlapping: tuple[str, ...] = ()
+    policy: str = "interpolate"
+    _cache: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
+
+    def __getitem__(self, criterion: str) -> Mapping[str, float]:
+        if criterion not in self._cache:
+            index = self.criteria.index(criterion)  # ValueError → KeyError below
+            row = self.sums[index]
+            values: dict[str, float] = {"n": float(row[k.FIELD_N])}
+            for name in self.measures:
+                if quantile_level(name) is not None:
+                    values[name] = self.quantiles.get(criterion, {}).get(name, math.nan)
+                else:
+                    values[name] = measure_from_sums(name, row, self.thresholds)
+            values.setdefault("density", measure_from_sums("density", row, self.thresholds))
+            self._cache[criterion] = values
+        return self._cache[criterion]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.criteria)
+
+    def __len__(self) -> int:
+        return len(self.criteria)
+
+    def __contains__(self, criterion: object) -> bool:
+        return criterion in self.criteria
+
+    def to_dict(self) -> dict[str, dict[str, float]]:
+        """Plain nested dict (criterion → measure → value), JSON-ready apart from nan."""
+        return {criterion: dict(self[criterion]) for criterion in self.criteria}
+
+    @classmethod
+    def combine(cls, parts: Sequence[Scores]) -> Scores:
+        """Scores of several frames together: sums of sums (quantiles are not summable: nan)."""
+        if not parts:
+            raise ConfigurationError("no scores to combine")
+        first = parts[0]
+        for part in parts[1:]:
+            if part.criteria != first.criteria or not np.array_equal(
+                part.thresholds, first.thresholds
+            ):
+                raise ConfigurationError(
+                    "cannot combine scores of different criteria or thresholds"
+                )
+        total = np.sum([part.sums for part in parts], axis=0)
+        return cls(
+            criteria=first.criteria,
+            measures=first.measures,
+            sums=total,
+            thresholds=first.thresholds,
+            relative=first.relative,
+            overlapping=first.overlapping,
+            policy=first.policy,
+        )

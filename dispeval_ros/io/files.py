@@ -1,0 +1,404 @@
+"""Readers and writers of disparity maps and masks.
+
+Values are returned as the source encodes them, after applying the source's scale: ``inf``
+stays ``inf`` and ``0`` stays ``0``. Deciding which points are valid (finite and > 0) is the
+core's job, not this module's.
+
+Every problem with a file raises :class:`~dispeval_ros.errors.InputError` with a one-line
+message naming the file, what was expected and what came.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import zipfile
+from pathlib import Path
+from typing import TypeAlias
+
+import cv2
+import numpy as np
+
+from dispeval_ros.errors import InputError
+
+PathLike: TypeAlias = str | os.PathLike[str]
+
+#: Extensions :func:`read_disparity` decodes.
+DISPARITY_EXTENSIONS = (".pfm", ".npy", ".npz", ".png", ".pgm", ".ppm")
+#: Extensions :func:`read_mask` decodes.
+MASK_EXTENSIONS = (".png", ".pgm", ".ppm", ".pbm", ".bmp", ".npy", ".npz")
+_IMAGE_EXTENSIONS = (".png", ".pgm", ".ppm", ".pbm", ".bmp")
+
+#: Scale of 16-bit disparity PNGs (KITTI): disparity = value / 256, 0 = no GT.
+PNG16_SCALE = 256.0
+_PNG16_MAX = 65535
+
+_WHITESPACE = b" \t\r\n\v\f"
+_PFM_HEADER_LIMIT = 4096
+
+
+def _one_line(text: object, limit: int = 60) -> str:
+    """Quote a value for a one-line message (newlines escaped, long values cut)."""
+    shown = repr(text)
+    return shown if len(shown) <= limit else shown[: limit - 3] + "..."
+
+
+def _read_bytes(path: Path, what: str) -> bytes:
+    """Read a whole file, turning OS errors and empty files into InputError."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: {what} file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: expected a {what} file, got a directory") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read {what} file ({exc.strerror or exc})") from None
+    if not data:
+        raise InputError(f"{path}: {what} file is empty (0 bytes)")
+    return data
+
+
+# --------------------------------------------------------------------------------------- PFM
+
+
+def _pfm_tokens(data: bytes, path: Path) -> tuple[list[bytes], int]:
+    """Split the PFM header into its 4 tokens; return them and the offset after the last.
+
+    Tokens are separated by any whitespace; ``#`` starts a comment running to the end of the
+    line (allowed between tokens, as in PNM headers).
+    """
+    tokens: list[bytes] = []
+    pos = 0
+    end = min(len(data), _PFM_HEADER_LIMIT)
+    while len(tokens) < 4:
+        while pos < end and data[pos] in _WHITESPACE:
+            pos += 1
+        if pos < end and data[pos] == ord("#"):
+            while pos < end and data[pos] not in b"\r\n":
+                pos += 1
+            continue
+        if pos >= end:
+            found = b" ".join(tokens).decode("latin-1")
+            raise InputError(
+                f"{path}: PFM header incomplete: expected 'Pf|PF width height scale', "
+                f"found {_one_line(found)}"
+            )
+        start = pos
+        while pos < end and data[pos] not in _WHITESPACE and data[pos] != ord("#"):
+            pos += 1
+        tokens.append(data[start:pos])
+    return tokens, pos
+
+
+def _is_filler(segment: bytes) -> bool:
+    """Whether ``segment`` is only whitespace and ``#`` comments ending in a line break."""
+    pos = 0
+    while pos < len(segment):
+        if segment[pos] in _WHITESPACE:
+            pos += 1
+        elif segment[pos] == ord("#"):
+            line_end = segment.find(b"\n", pos)
+            if line_end < 0:
+                return False
+            pos = line_end + 1
+        else:
+            return False
+    return True
+
+
+def _parse_pfm_header(data: bytes, path: Path) -> tuple[int, int, int, str, int]:
+    """Return ``(height, width, channels, byte order, offset of the data)``."""
+    if data[:2] not in (b"Pf", b"PF"):
+        raise InputError(
+            f"{path}: not a PFM file: expected the magic 'Pf' or 'PF', "
+            f"found {_one_line(data[:2].decode('latin-1'))}"
+        )
+    tokens, pos = _pfm_tokens(data, path)
+    magic, width_token, height_token, scale_token = tokens
+    if magic not in (b"Pf", b"PF"):
+        raise InputError(
+            f"{path}: PFM magic must be followed by whitespace, "
+            f"found {_one_line(magic.decode('latin-1'))}"
+        )
+    channels = 1 if magic == b"Pf" else 3
+    try:
+        width, height = int(width_token), int(height_token)
+    except ValueError:
+        dims = (width_token + b" " + height_token).decode("latin-1")
+        raise InputError(
+            f"{path}: PFM size must be two integers 'width height', found {_one_line(dims)}"
+        ) from None
+    if width <= 0 or height <= 0:
+        raise InputError(f"{path}: PFM size must be positive, found {width}x{height}")
+    try:
+        scale = float(scale_token)
+    except ValueError:
+        scale = math.nan
+    if not math.isfinite(scale) or scale == 0:
+        raise InputError(
+            f"{path}: PFM scale must be a non-zero number (its sign gives the byte order), "
+            f"found {_one_line(scale_token.decode('latin-1'))}"
+        )
+    order = "<" if scale < 0 else ">"
+
+    expected = width * height * channels * 4
+    # The header ends with one whitespace character after the scale. Writers that put
+    # "\r\n", " \n" or a comment there are accepted too: if the bytes between the scale and
+    # (end of file - data size) are only whitespace and comments, the data follows them.
+    if pos >= len(data):
+        available = 0
+    else:
+        pos += 1
+        available = len(data) - pos
+        if available > expected:
+            start = len(data) - expected
+            if _is_filler(data[pos - 1 : start]):
+                pos = start
+            available = len(data) - pos
+    if available < expected:
+        raise InputError(
+            f"{path}: PFM data truncated: expected {expected} bytes for {width}x{height}x"
+            f"{channels} float32, found {available}"
+        )
+    return height, width, channels, order, pos
+
+
+def read_pfm(path: PathLike) -> np.ndarray:
+    """Read a PFM file into a float32 array (H×W for ``Pf``, H×W×3 for ``PF``).
+
+    The sign of the scale field gives the byte order (negative = little-endian); its
+    magnitude is ignored (MiddEval3 writes 1/255 there, which is *not* a factor to apply).
+    Rows are stored bottom-to-top and returned top-down. The result is a C-contiguous,
+    native-endian array that owns its data.
+    """
+    file = Path(path)
+    data = _read_bytes(file, "PFM")
+    height, width, channels, order, offset = _parse_pfm_header(data, file)
+    count = height * width * channels
+    values = np.frombuffer(data, dtype=np.dtype(f"{order}f4"), count=count, offset=offset)
+    shape = (height, width) if channels == 1 else (height, width, 3)
+    image = values.reshape(shape)[::-1]
+    return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def write_pfm(path: PathLike, array: np.ndarray) -> None:
+    """Write an H×W or H×W×3 array as a little-endian, bottom-to-top float32 PFM."""
+    file = Path(path)
+    values = np.asarray(array)
+    if values.ndim == 2:
+        magic = b"Pf"
+    elif values.ndim == 3 and values.shape[2] == 3:
+        magic = b"PF"
+    else:
+        raise InputError(
+            f"{file}: PFM needs an H×W or H×W×3 array, got shape {tuple(values.shape)}"
+        )
+    if values.shape[0] == 0 or values.shape[1] == 0:
+        raise InputError(f"{file}: PFM needs a non-empty array, got shape {values.shape}")
+    if not np.issubdtype(values.dtype, np.number) or np.iscomplexobj(values):
+        raise InputError(f"{file}: PFM needs real numbers, got dtype {values.dtype}")
+    height, width = values.shape[:2]
+    body = np.ascontiguousarray(values[::-1], dtype="<f4").tobytes()
+    header = magic + f"\n{width} {height}\n-1\n".encode("ascii")
+    try:
+        file.write_bytes(header + body)
+    except OSError as exc:
+        raise InputError(f"{file}: cannot write PFM file ({exc.strerror or exc})") from None
+
+
+# ------------------------------------------------------------------------------ image decode
+
+
+def _decode_image(data: bytes, path: Path, what: str) -> np.ndarray:
+    """Decode PNG/PNM/BMP bytes with OpenCV into one channel, keeping 8 or 16 bit depth.
+
+    Palette images are expanded through their palette. Images with several channels are
+    accepted only when their colour channels are identical (a grey palette, or grey stored as
+    RGB); a colour image is not a disparity map or a mask.
+    """
+    buffer = np.frombuffer(data, dtype=np.uint8)
+    try:
+        image = cv2.imdecode(buffer, cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        image = None
+    if image is None:
+        raise InputError(
+            f"{path}: cannot decode {what} image: expected a valid {path.suffix or 'image'} "
+            f"file, found {len(data)} bytes that OpenCV cannot read (corrupt or wrong format)"
+        )
+    if image.ndim == 3:
+        channels = image.shape[2]
+        colour = image[:, :, : min(channels, 3)]
+        if channels not in (3, 4) or not (
+            np.array_equal(colour[:, :, 0], colour[:, :, 1])
+            and np.array_equal(colour[:, :, 0], colour[:, :, 2])
+        ):
+            raise InputError(
+                f"{path}: {what} image must have one channel (grey or grey palette), "
+                f"found {channels} channels with different colours"
+            )
+        # Equal B, G, R: OpenCV's grey conversion (IMREAD_GRAYSCALE) gives exactly this value.
+        image = colour[:, :, 0]
+    if image.dtype not in (np.uint8, np.uint16):
+        raise InputError(f"{path}: {what} image must be 8 or 16 bit unsigned, found {image.dtype}")
+    if image.size == 0:
+        raise InputError(f"{path}: {what} image is empty (0×0)")
+    return np.ascontiguousarray(image)
+
+
+def _load_npz(data: bytes, path: Path) -> np.ndarray:
+    import io
+
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+            keys = list(archive.files)
+            if "arr_0" in keys:
+                key = "arr_0"
+            elif len(keys) == 1:
+                key = keys[0]
+            elif not keys:
+                raise InputError(f"{path}: npz archive holds no array, expected one")
+            else:
+                raise InputError(
+                    f"{path}: npz archive holds several arrays {keys}, expected 'arr_0' or "
+                    f"a single array"
+                )
+            return np.asarray(archive[key])
+    except InputError:
+        raise
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        raise InputError(f"{path}: cannot decode npz archive ({_one_line(str(exc))})") from None
+
+
+def _load_npy(data: bytes, path: Path) -> np.ndarray:
+    import io
+
+    try:
+        return np.asarray(np.load(io.BytesIO(data), allow_pickle=False))
+    except (ValueError, OSError, EOFError) as exc:
+        raise InputError(f"{path}: cannot decode npy array ({_one_line(str(exc))})") from None
+
+
+def _check_scale(scale: float | None, path: Path) -> float | None:
+    if scale is None:
+        return None
+    try:
+        value = float(scale)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise InputError(f"{path}: disparity scale must be a finite number > 0, got {scale!r}")
+    return value
+
+
+def _as_disparity(values: np.ndarray, path: Path) -> np.ndarray:
+    """Check an array from npy/npz/pfm is one real H×W map; return float32."""
+    array = values
+    if array.ndim == 3 and array.shape[2] == 1:
+        array = array[:, :, 0]
+    if array.ndim != 2:
+        raise InputError(
+            f"{path}: disparity must be one H×W channel, found shape {tuple(values.shape)}"
+        )
+    if array.size == 0:
+        raise InputError(f"{path}: disparity map is empty, shape {tuple(values.shape)}")
+    if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
+        raise InputError(f"{path}: disparity must be numeric, found dtype {array.dtype}")
+    if np.iscomplexobj(array):
+        raise InputError(f"{path}: disparity must be real, found dtype {array.dtype}")
+    return np.ascontiguousarray(array, dtype=np.float32)
+
+
+def read_disparity(path: PathLike, scale: float | None = None) -> np.ndarray:
+    """Read a disparity map in pixels as a C-contiguous float32 H×W array.
+
+    The format comes from the extension: ``.pfm``, ``.npy``, ``.npz`` (key ``arr_0``, else
+    the only array), ``.png``/``.pgm``/``.ppm`` (one channel, palette expanded). The result is
+    ``value / scale``. Default scale: 256 for 16-bit images (KITTI), 1 for everything else
+    (8-bit images, float files). Invalid values stay as the source encodes them.
+    """
+    file = Path(path)
+    suffix = file.suffix.lower()
+    if suffix not in DISPARITY_EXTENSIONS:
+        raise InputError(
+            f"{file}: unknown disparity file type {suffix or '(no extension)'!r}, expected "
+            f"one of {', '.join(DISPARITY_EXTENSIONS)}"
+        )
+    factor = _check_scale(scale, file)
+    if suffix == ".pfm":
+        disparity = _as_disparity(read_pfm(file), file)
+    else:
+        data = _read_bytes(file, "disparity")
+        if suffix == ".npy":
+            disparity = _as_disparity(_load_npy(data, file), file)
+        elif suffix == ".npz":
+            disparity = _as_disparity(_load_npz(data, file), file)
+        else:
+            image = _decode_image(data, file, "disparity")
+            if factor is None and image.dtype == np.uint16:
+                factor = PNG16_SCALE
+            disparity = image.astype(np.float32)
+    if factor is not None and factor != 1.0:
+        # Divide in float64 so that value/scale is rounded once, to the nearest float32.
+        disparity = (disparity.astype(np.float64) / factor).astype(np.float32)
+    return np.ascontiguousarray(disparity, dtype=np.float32)
+
+
+def read_mask(path: PathLike) -> np.ndarray:
+    """Read a mask as a uint8 H×W array with the file's values (e.g. 255 / 128 / 0).
+
+    Palette images are expanded to grey. ``.npy``/``.npz`` boolean masks become 255/0.
+    """
+    file = Path(path)
+    suffix = file.suffix.lower()
+    if suffix not in MASK_EXTENSIONS:
+        raise InputError(
+            f"{file}: unknown mask file type {suffix or '(no extension)'!r}, expected one of "
+            f"{', '.join(MASK_EXTENSIONS)}"
+        )
+    data = _read_bytes(file, "mask")
+    if suffix in _IMAGE_EXTENSIONS:
+        image = _decode_image(data, file, "mask")
+        if image.dtype != np.uint8:
+            raise InputError(f"{file}: mask image must be 8 bit, found {image.dtype}")
+        return image
+    values = _load_npy(data, file) if suffix == ".npy" else _load_npz(data, file)
+    if values.ndim != 2 or values.size == 0:
+        raise InputError(f"{file}: mask must be a non-empty H×W array, found {values.shape}")
+    if values.dtype == np.bool_:
+        return np.where(values, np.uint8(255), np.uint8(0))
+    if values.dtype == np.uint8:
+        return np.ascontiguousarray(values)
+    raise InputError(f"{file}: mask array must be bool or uint8, found {values.dtype}")
+
+
+def write_disparity_png16(path: PathLike, disparity: np.ndarray) -> None:
+    """Write a disparity map in KITTI's encoding: uint16 PNG of ``round(d·256)``.
+
+    Invalid points (not finite or ≤ 0) become 0. A valid disparity too small to survive the
+    rounding is written as 1 (1/256 px) so that it stays valid. Values above 65535/256 px
+    cannot be encoded and raise :class:`InputError`.
+    """
+    file = Path(path)
+    values = np.asarray(disparity)
+    if values.ndim != 2 or values.size == 0:
+        raise InputError(
+            f"{file}: KITTI PNG needs a non-empty H×W disparity, got shape {values.shape}"
+        )
+    values = values.astype(np.float64)
+    valid = np.isfinite(values) & (values > 0)
+    scaled = np.zeros(values.shape, dtype=np.float64)
+    scaled[valid] = np.maximum(np.round(values[valid] * PNG16_SCALE), 1.0)
+    if valid.any() and scaled.max() > _PNG16_MAX:
+        raise InputError(
+            f"{file}: KITTI PNG encodes disparities up to {_PNG16_MAX / PNG16_SCALE:.4f} px, "
+            f"got {values[valid].max():.4f}"
+        )
+    if file.suffix.lower() != ".png":
+        raise InputError(f"{file}: KITTI disparity must be written as .png, got {file.suffix!r}")
+    try:
+        ok = cv2.imwrite(str(file), scaled.astype(np.uint16))
+    except cv2.error as exc:
+        raise InputError(f"{file}: cannot write PNG ({_one_line(str(exc))})") from None
+    if not ok:
+        raise InputError(f"{file}: cannot write PNG (OpenCV refused the path)")

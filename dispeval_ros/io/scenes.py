@@ -1,0 +1,403 @@
+"""Scene folders of the public stereo benchmarks, recognised by their files.
+
+:func:`load_scene` turns a folder into a :class:`Scene`: the left ground truth in pixels
+(invalid points kept as the source encodes them: ``inf`` or ``0``), the right ground truth
+when published, the official masks as boolean arrays, the camera and the image paths.
+:func:`list_frames` returns every frame of a sequence folder (SceneFlow, TartanAir).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.errors import CalibrationError, InputError, LayoutError, ShapeMismatchError
+from dispeval_ros.io.calib import read_calib
+from dispeval_ros.io.files import PathLike, read_disparity, read_mask
+
+#: The layouts :func:`load_scene` recognises.
+LAYOUTS = (
+    "middlebury2001",
+    "middeval3",
+    "kitti",
+    "eth3d",
+    "sceneflow",
+    "tartanair",
+    "motorcycle-npz",
+)
+
+#: The Motorcycle npz of scikit-image ships no calibration; its documentation gives these
+#: (Middlebury 2014 Motorcycle, quarter size 741×500): f and doffs in px, baseline in mm.
+MOTORCYCLE_NPZ = "motorcycle_disp.npz"
+MOTORCYCLE_F = 994.978
+MOTORCYCLE_DOFFS = 31.086
+MOTORCYCLE_BASELINE_MM = 193.001
+
+_FRAME_PFM = re.compile(r"^\d+\.pfm$", re.IGNORECASE)
+_TARTANAIR_SUFFIX = "_left_disp.npy"
+_KITTI_P = re.compile(r"(?m)^\s*(P_rect_0[23]|P[23])\s*:")
+
+
+@dataclass(eq=False)
+class Scene:
+    """One stereo frame with its ground truth.
+
+    ``gt``/``gt_right`` are float32 disparities in pixels (left / right view); invalid points
+    keep the source's encoding (``inf`` or ``0``). ``masks`` holds the official masks as
+    boolean arrays keyed ``"all"``, ``"nonocc"``, ``"disc"`` (whichever the source
+    publishes). ``camera`` is ``None`` when the source has no calibration.
+    """
+
+    name: str
+    layout: str
+    gt: np.ndarray
+    gt_right: np.ndarray | None
+    masks: dict[str, np.ndarray]
+    camera: Camera | None
+    left: Path | None
+    right: Path | None
+    source: Path
+
+
+# ----------------------------------------------------------------------------------- helpers
+
+
+def _existing(folder: Path, *names: str) -> Path | None:
+    """Return the first of ``names`` that is a file in ``folder`` (exact name, then any case)."""
+    for name in names:
+        candidate = folder / name
+        if candidate.is_file():
+            return candidate
+    lowered = {entry.name.lower(): entry for entry in folder.iterdir() if entry.is_file()}
+    for name in names:
+        if name.lower() in lowered:
+            return lowered[name.lower()]
+    return None
+
+
+def _same_shape(gt: np.ndarray, gt_file: Path, other: np.ndarray, other_file: Path) -> None:
+    if other.shape[:2] != gt.shape[:2]:
+        raise ShapeMismatchError(
+            f"{other_file}: expected the size of {gt_file.name} "
+            f"({gt.shape[1]}×{gt.shape[0]}), found {other.shape[1]}×{other.shape[0]}"
+        )
+
+
+def _mask(file: Path, gt: np.ndarray, gt_file: Path, value: int | None) -> np.ndarray:
+    """Boolean mask: pixels equal to ``value`` (or > 0 when ``value`` is None)."""
+    raw = read_mask(file)
+    _same_shape(gt, gt_file, raw, file)
+    return raw == value if value is not None else raw > 0
+
+
+def _required_calib(folder: Path, *names: str) -> Camera:
+    calib = _existing(folder, *names)
+    if calib is None:
+        raise CalibrationError(
+            f"{folder / names[0]}: calibration file missing (the scene's layout needs it)"
+        )
+    return read_calib(calib)
+
+
+def _files_preview(folder: Path, limit: int = 8) -> str:
+    names = sorted(entry.name + ("/" if entry.is_dir() else "") for entry in folder.iterdir())
+    if not names:
+        return "nothing (empty folder)"
+    shown = ", ".join(names[:limit])
+    return shown + (f", ... ({len(names)} entries)" if len(names) > limit else "")
+
+
+# ---------------------------------------------------------------------------------- layouts
+
+
+def _load_middlebury2001(folder: Path) -> Scene:
+    gt_file = folder / "groundtruth.png"
+    info = folder / "info.txt"
+    try:
+        lines = info.read_text(encoding="utf-8", errors="replace").split()
+    except OSError as exc:
+        raise InputError(f"{info}: cannot read ({exc.strerror or exc})") from None
+    first = lines[0] if lines else ""
+    try:
+        scale = float(first)
+    except ValueError:
+        scale = math.nan
+    if not math.isfinite(scale) or scale <= 0:
+        raise InputError(
+            f"{info}: expected the GT scale (a number > 0) as the first value, got {first!r}"
+        )
+    gt = read_disparity(gt_file, scale=scale)
+    right_file = _existing(folder, "groundtruth_right.png", "groundtruth_right.pgm")
+    gt_right = None
+    if right_file is not None:
+        gt_right = read_disparity(right_file, scale=scale)
+        _same_shape(gt, gt_file, gt_right, right_file)
+    masks: dict[str, np.ndarray] = {}
+    for name in ("all", "nonocc", "disc"):
+        mask_file = _existing(folder, f"{name}.png")
+        if mask_file is not None:
+            # 255 = in the mask; disc.png also marks other non-occluded points with 128.
+            masks[name] = _mask(mask_file, gt, gt_file, 255)
+    return Scene(
+        name=folder.name,
+        layout="middlebury2001",
+        gt=gt,
+        gt_right=gt_right,
+        masks=masks,
+        camera=None,
+        left=_existing(folder, "imL.png", "im2.png", "view1.png"),
+        right=_existing(folder, "imR.png", "im6.png", "view5.png"),
+        source=folder,
+    )
+
+
+def _load_middlebury2014(folder: Path, layout: str, gt_name: str) -> Scene:
+    """MiddEval3 (``disp0GT.pfm``) and ETH3D two-view (``disp0.pfm``) folders."""
+    gt_file = folder / gt_name
+    camera = _required_calib(folder, "calib.txt")
+    gt = read_disparity(gt_file)
+    right_name = gt_name.replace("0", "1", 1)
+    right_file = _existing(folder, right_name)
+    gt_right = None
+    if right_file is not None:
+        gt_right = read_disparity(right_file)
+        _same_shape(gt, gt_file, gt_right, right_file)
+    masks: dict[str, np.ndarray] = {}
+    mask_file = _existing(folder, "mask0nocc.png")
+    if mask_file is not None:
+        # 255 = non-occluded, 128 = occluded, 0 = no GT.
+        masks["nonocc"] = _mask(mask_file, gt, gt_file, 255)
+    return Scene(
+        name=folder.name,
+        layout=layout,
+        gt=gt,
+        gt_right=gt_right,
+        masks=masks,
+        camera=camera,
+        left=_existing(folder, "im0.png"),
+        right=_existing(folder, "im1.png"),
+        source=folder,
+    )
+
+
+def _kitti_gt(folder: Path) -> Path | None:
+    found = _existing(folder, "gt_disparity.png", "disp_gt.png")
+    if found is not None:
+        return found
+    occ = sorted(
+        entry
+        for entry in folder.iterdir()
+        if entry.is_file()
+        and entry.name.lower().startswith("disp_occ")
+        and entry.suffix.lower() == ".png"
+    )
+    return occ[0] if occ else None
+
+
+def _kitti_calib_file(folder: Path) -> Path | None:
+    """Find the first ``calib*.txt`` holding rectified projection matrices (P_rect_02 or P2)."""
+    for entry in sorted(folder.iterdir()):
+        if not (
+            entry.is_file()
+            and entry.name.lower().startswith("calib")
+            and entry.suffix.lower() == ".txt"
+        ):
+            continue
+        try:
+            text = entry.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            continue
+        if _KITTI_P.search(text):
+            return entry
+    return None
+
+
+def _load_kitti(folder: Path, gt_file: Path) -> Scene:
+    gt = read_disparity(gt_file)
+    masks: dict[str, np.ndarray] = {}
+    lower = gt_file.name.lower()
+    if lower.startswith("disp_occ"):
+        noc_name = "disp_noc" + gt_file.name[len("disp_occ") :]
+        noc_file = _existing(folder, noc_name)
+        if noc_file is not None:
+            noc = read_disparity(noc_file)
+            _same_shape(gt, gt_file, noc, noc_file)
+            masks["nonocc"] = noc > 0
+    camera = None
+    calib_file = _kitti_calib_file(folder)
+    q_file = _existing(folder, "Q.dat")
+    if calib_file is not None:
+        camera = read_calib(calib_file)
+    elif q_file is not None:
+        camera = read_calib(q_file)
+    return Scene(
+        name=folder.name,
+        layout="kitti",
+        gt=gt,
+        gt_right=None,
+        masks=masks,
+        camera=camera,
+        left=_existing(
+            folder, "stereo_left.png", "image_2.png", "image.png", "left.png", "im0.png"
+        ),
+        right=_existing(folder, "stereo_right.png", "image_3.png", "right.png", "im1.png"),
+        source=folder,
+    )
+
+
+def _load_motorcycle_npz(folder: Path) -> Scene:
+    camera = Camera(
+        f=MOTORCYCLE_F,
+        baseline=MOTORCYCLE_BASELINE_MM / 1000.0,
+        doffs=MOTORCYCLE_DOFFS,
+    )
+    return Scene(
+        name=folder.name,
+        layout="motorcycle-npz",
+        gt=read_disparity(folder / MOTORCYCLE_NPZ),
+        gt_right=None,
+        masks={},
+        camera=camera,
+        left=_existing(folder, "motorcycle_left.png"),
+        right=_existing(folder, "motorcycle_right.png"),
+        source=folder,
+    )
+
+
+def _sceneflow_frames(folder: Path) -> list[str]:
+    disparity = folder / "Disparity"
+    if not disparity.is_dir():
+        return []
+    return sorted(
+        entry.stem
+        for entry in disparity.iterdir()
+        if entry.is_file() and _FRAME_PFM.match(entry.name)
+    )
+
+
+def _sceneflow_camera(folder: Path) -> Camera:
+    q_file = _existing(folder / "Disparity", "Q.dat") or _existing(folder, "Q.dat")
+    if q_file is None:
+        raise CalibrationError(
+            f"{folder / 'Disparity' / 'Q.dat'}: calibration file missing (SceneFlow needs "
+            f"the Q reprojection matrix)"
+        )
+    # FlyingThings3D's baseline is 1 Blender unit: depths are in scene units, not metres.
+    return dataclasses.replace(read_calib(q_file), unit="scene")
+
+
+def _sceneflow_frame(folder: Path, frame: str, camera: Camera) -> Scene:
+    images = [folder / side / f"{frame}.png" for side in ("Left", "Right")]
+    return Scene(
+        name=f"{folder.name}_{frame}",
+        layout="sceneflow",
+        gt=read_disparity(folder / "Disparity" / f"{frame}.pfm"),
+        gt_right=None,
+        masks={},
+        camera=camera,
+        left=images[0] if images[0].is_file() else None,
+        right=images[1] if images[1].is_file() else None,
+        source=folder,
+    )
+
+
+def _tartanair_frames(folder: Path) -> list[str]:
+    return sorted(
+        entry.name[: -len(_TARTANAIR_SUFFIX)]
+        for entry in folder.iterdir()
+        if entry.is_file() and entry.name.endswith(_TARTANAIR_SUFFIX)
+    )
+
+
+def _tartanair_frame(folder: Path, frame: str, camera: Camera) -> Scene:
+    gt = read_disparity(folder / f"{frame}{_TARTANAIR_SUFFIX}")
+    right_file = _existing(folder, f"{frame}_right_disp.npy")
+    gt_right = None
+    if right_file is not None:
+        gt_right = read_disparity(right_file)
+        _same_shape(gt, folder / f"{frame}{_TARTANAIR_SUFFIX}", gt_right, right_file)
+    return Scene(
+        name=f"{folder.name}_{frame}",
+        layout="tartanair",
+        gt=gt,
+        gt_right=gt_right,
+        masks={},
+        camera=camera,
+        left=_existing(folder, f"{frame}_left.png"),
+        right=_existing(folder, f"{frame}_right.png"),
+        source=folder,
+    )
+
+
+# ---------------------------------------------------------------------------------- public
+
+
+def _folder(path: PathLike) -> Path:
+    folder = Path(path)
+    if not folder.exists():
+        raise InputError(f"{folder}: scene folder not found")
+    if not folder.is_dir():
+        raise LayoutError(f"{folder}: expected a scene folder, got a file")
+    return folder
+
+
+_LOOKED_FOR = (
+    "Disparity/NNNN.pfm (sceneflow), motorcycle_disp.npz (motorcycle-npz), "
+    "disp0GT.pfm (middeval3), disp0.pfm (eth3d), groundtruth.png + info.txt "
+    "(middlebury2001), *_left_disp.npy (tartanair), gt_disparity.png|disp_gt.png|"
+    "disp_occ*.png (kitti)"
+)
+
+
+def _frames(folder: Path) -> list[Callable[[], Scene]]:
+    """Loaders of every frame of ``folder`` in order; detection happens here, loading later."""
+    frames = _sceneflow_frames(folder)
+    if frames:
+        camera = _sceneflow_camera(folder)
+        return [partial(_sceneflow_frame, folder, frame, camera) for frame in frames]
+    if (folder / MOTORCYCLE_NPZ).is_file():
+        return [partial(_load_motorcycle_npz, folder)]
+    if (folder / "disp0GT.pfm").is_file():
+        return [partial(_load_middlebury2014, folder, "middeval3", "disp0GT.pfm")]
+    if (folder / "disp0.pfm").is_file():
+        return [partial(_load_middlebury2014, folder, "eth3d", "disp0.pfm")]
+    if (folder / "groundtruth.png").is_file():
+        if not (folder / "info.txt").is_file():
+            raise LayoutError(
+                f"{folder}: groundtruth.png found but not info.txt (Middlebury 2001/2003: its "
+                f"first line is the GT scale); found {_files_preview(folder)}"
+            )
+        return [partial(_load_middlebury2001, folder)]
+    frames = _tartanair_frames(folder)
+    if frames:
+        camera = _required_calib(folder, "Q.dat")
+        return [partial(_tartanair_frame, folder, frame, camera) for frame in frames]
+    gt_file = _kitti_gt(folder)
+    if gt_file is not None:
+        return [partial(_load_kitti, folder, gt_file)]
+    raise LayoutError(
+        f"{folder}: not a recognised scene folder: looked for {_LOOKED_FOR}; "
+        f"found {_files_preview(folder)}"
+    )
+
+
+def load_scene(path: PathLike) -> Scene:
+    """Load the scene in folder ``path``, recognising its layout by its files.
+
+    For a sequence folder (SceneFlow, TartanAir) this is the first frame; see
+    :func:`list_frames` for all of them.
+    """
+    return _frames(_folder(path))[0]()
+
+
+def list_frames(path: PathLike) -> list[Scene]:
+    """Every frame of the scene folder ``path`` (one for single-frame layouts)."""
+    return [loader() for loader in _frames(_folder(path))]
