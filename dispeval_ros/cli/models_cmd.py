@@ -43,7 +43,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def _consistency(path: Path, measures: list[str], objectives: list[str], matrix: np.ndarray) -> float:
+def _consistency(
+    path: Path, measures: list[str], objectives: list[str], matrix: np.ndarray
+) -> float:
     groups = []
     for measure in measures:
         columns = [

@@ -174,8 +174,7 @@ def kmeans_thresholds(
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     gt = np.ascontiguousarray(gt)
-    lo = float(gt[valid].min())
-    hi = float(gt[valid].max())
+    lo, hi = kernels.valid_range(gt, valid)
     centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
     bin_counts, bin_sums = kernels.histogram_sums(gt, valid, lo, hi, _KMEANS_BINS)
     occupied = bin_counts > 0
@@ -229,7 +228,7 @@ def depth_set(
     """
     if ranges is None:
         low, high = kmeans_thresholds(gt, valid)
-        labels = np.where(gt > high, 0, np.where(gt > low, 1, 2)).astype(np.int32)
+        labels = kernels.threshold_labels(np.ascontiguousarray(gt), low, high)
         return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
     if camera is None:
         raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")

@@ -61,8 +61,6 @@ class Reference:
     partition: crit.Partition
     camera: Camera | None
     gt_sorted: np.ndarray
-    inv_gt_sorted: np.ndarray
-    depth_gt_sorted: np.ndarray
     fb: float
     depth_offset: float
 
@@ -159,7 +157,6 @@ class Evaluator:
         ]
         partition = crit.build_partition(valid, sets)
         gt_sorted = gt.ravel()[partition.order]
-        gt64 = gt_sorted.astype(np.float64)
         fb = camera.fb if camera else 1.0
         doffs = camera.doffs if camera else 0.0
         depth_offset = doffs + self.mu
@@ -168,8 +165,6 @@ class Evaluator:
             partition=partition,
             camera=camera,
             gt_sorted=gt_sorted,
-            inv_gt_sorted=(1.0 / gt64).astype(np.float32),
-            depth_gt_sorted=fb / (gt64 + depth_offset),
             fb=fb,
             depth_offset=depth_offset,
         )
@@ -273,24 +268,27 @@ class Evaluator:
                 f"the estimate is {estimate.shape[0]}×{estimate.shape[1]} but the ground truth is "
                 f"{reference.shape[0]}×{reference.shape[1]}"
             )
-        work = self.normalise(estimate, est_range)
         partition = reference.partition
+        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        values = self._buffer("values", partition.order.shape, np.float32)
+        coded = self.missing == "interpolate"
+        source = self.normalise(estimate, est_range) if coded else estimate
+        kernels.gather_estimate(
+            source.ravel(), partition.order, float(lo), float(hi), coded, values
+        )
         cell_sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         kernels.accumulate_cells(
-            work.ravel(),
-            partition.order,
+            values,
             partition.offsets,
             reference.gt_sorted,
-            reference.inv_gt_sorted,
-            reference.depth_gt_sorted,
             reference.fb,
             reference.depth_offset,
             self.thresholds,
-            self.missing == "ignore",
+            0.0 if self.missing == "ignore" else 1.0,
             cell_sums,
         )
         sums = partition.membership.astype(np.float64) @ cell_sums
-        quantiles = self._quantile_values(reference, work) if self._quantiles else {}
+        quantiles = self._quantile_values(reference, values) if self._quantiles else {}
         return Scores(
             criteria=partition.criteria,
             measures=self.measures,
@@ -307,38 +305,44 @@ class Evaluator:
     ) -> np.ndarray:
         """The estimate with validity in the sign bit and the missing policy applied.
 
-        The returned buffer is reused by the next call in the same thread.
+        Positive: a valid estimate; otherwise missing, scored as the negated value (KITTI
+        background interpolation under ``interpolate``, 0 otherwise). The returned buffer
+        is reused by the next call in the same thread.
         """
+        estimate = as_disparity(estimate, "the estimate")
         lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
-        buffer = getattr(self._local, "work", None)
-        if buffer is None or buffer.shape != estimate.shape:
-            buffer = np.empty(estimate.shape, dtype=np.float32)
-            self._local.work = buffer
+        buffer = self._buffer("work", estimate.shape, np.float32)
         kernels.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
         return buffer
 
+    def _buffer(self, name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+        """A per-thread scratch array, reallocated only when the shape changes."""
+        buffer = getattr(self._local, name, None)
+        if buffer is None or buffer.shape != shape:
+            buffer = np.empty(shape, dtype=dtype)
+            setattr(self._local, name, buffer)
+        return buffer
+
     def _quantile_values(
-        self, reference: Reference, work: np.ndarray
+        self, reference: Reference, values: np.ndarray
     ) -> dict[str, dict[str, float]]:
         """ETH3D-style error quantiles: the value at index ⌊N·q/100⌋ of the sorted errors."""
         partition = reference.partition
-        raw = work.ravel()[partition.order].astype(np.float64)
+        raw = values.astype(np.float64)
         errors = np.abs(np.abs(raw) - reference.gt_sorted)
         keep = raw > 0 if self.missing == "ignore" else np.ones(raw.shape, bool)
         cell_of = np.repeat(np.arange(partition.offsets.shape[0] - 1), np.diff(partition.offsets))
+        levels = {name: quantile_level(name) or 0.0 for name in self._quantiles}
         result: dict[str, dict[str, float]] = {}
         for index, criterion in enumerate(partition.criteria):
             selected = errors[partition.membership[index][cell_of] & keep]
-            values: dict[str, float] = {}
-            if selected.size:
-                levels = {name: quantile_level(name) or 0.0 for name in self._quantiles}
-                positions = {
-                    name: min(math.floor(selected.size * level / 100.0), selected.size - 1)
-                    for name, level in levels.items()
-                }
-                ordered = np.partition(selected, sorted(set(positions.values())))
-                values = {name: float(ordered[position]) for name, position in positions.items()}
-            else:
-                values = dict.fromkeys(self._quantiles, math.nan)
-            result[criterion] = values
+            if not selected.size:
+                result[criterion] = dict.fromkeys(self._quantiles, math.nan)
+                continue
+            positions = {
+                name: min(math.floor(selected.size * level / 100.0), selected.size - 1)
+                for name, level in levels.items()
+            }
+            ordered = np.partition(selected, sorted(set(positions.values())))
+            result[criterion] = {name: float(ordered[p]) for name, p in positions.items()}
         return result

@@ -33,6 +33,39 @@ FIELD_D1 = 8
 FIELD_BAD = 9
 
 
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _code_row(row: np.ndarray, lo: float, hi: float, out: np.ndarray) -> int:  # pragma: no cover
+    """Copy one row with validity in the sign (missing → -0.0); the number of valid values."""
+    count = 0
+    for x in range(row.shape[0]):
+        value = row[x]
+        valid = (value > 0.0) & (value >= lo) & (value <= hi) & (value < np.inf)
+        out[x] = value if valid else -0.0
+        count += 1 if valid else 0
+    return count
+
+
+@njit(cache=True, nogil=True)
+def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """KITTI background interpolation of one coded row that has at least one valid value."""
+    width = out.shape[0]
+    x = 0
+    while x < width:
+        if out[x] > 0.0:
+            x += 1
+            continue
+        gap_start = x
+        while x < width and not out[x] > 0.0:
+            x += 1
+        if gap_start == 0:
+            fill = out[x]  # leading gap: the first valid value
+        elif x == width:
+            fill = out[gap_start - 1]  # trailing gap: the last valid value
+        else:
+            fill = min(out[gap_start - 1], out[x])  # the farther neighbour
+        out[gap_start:x] = -fill
+
+
 @njit(cache=True, nogil=True)
 def normalise_estimate(
     est: np.ndarray, lo: float, hi: float, policy: int, out: np.ndarray
@@ -47,131 +80,137 @@ def normalise_estimate(
     first_row = -1
     last_row = -1
     for y in range(height):
-        row = est[y]
-        orow = out[y]
-        previous = -1  # column of the last valid estimate in this row
-        for x in range(width):
-            value = row[x]
-            if value > 0.0 and value >= lo and value <= hi and value < np.inf:
-                orow[x] = value
-                if policy == POLICY_INTERPOLATE:
-                    if previous < 0:
-                        for k in range(x):  # leading gap: the first valid value
-                            orow[k] = -value
-                    elif previous < x - 1:
-                        fill = min(orow[previous], value)  # the farther neighbour
-                        for k in range(previous + 1, x):
-                            orow[k] = -fill
-                previous = x
-            else:
-                orow[x] = -0.0
-        if previous >= 0:
-            if policy == POLICY_INTERPOLATE:
-                fill = orow[previous]
-                for k in range(previous + 1, width):  # trailing gap: the last valid value
-                    orow[k] = -fill
-            if first_row < 0:
-                first_row = y
-            last_row = y
-    if policy == POLICY_INTERPOLATE and first_row >= 0:
-        for y in range(first_row):  # rows above the first row with any valid value
-            for x in range(width):
-                value = out[first_row, x]
-                out[y, x] = -value if value > 0.0 else value
-        for y in range(last_row + 1, height):
-            for x in range(width):
-                value = out[last_row, x]
-                out[y, x] = -value if value > 0.0 else value
+        count = _code_row(est[y], lo, hi, out[y])
+        if count == 0:
+            continue
+        if first_row < 0:
+            first_row = y
+        last_row = y
+        if policy == POLICY_INTERPOLATE and count < width:
+            _fill_row_gaps(out[y])
+    if policy != POLICY_INTERPOLATE or first_row < 0:
+        return
+    for y in range(first_row):  # rows above the first row with any valid value copy it
+        out[y, :] = -np.abs(out[first_row])
+    for y in range(last_row + 1, height):  # rows below the last one likewise
+        out[y, :] = -np.abs(out[last_row])
 
 
 MAX_THRESHOLDS = 8
-_CHUNK = 2048
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def gather_estimate(
+    estimate: np.ndarray, order: np.ndarray, lo: float, hi: float, coded: bool, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Gather the estimate at the evaluated pixels (partition order), validity in the sign.
+
+    ``out[k] > 0``: a valid estimate. ``out[k] <= 0``: missing, to be scored as ``-out[k]``
+    (the interpolated value when ``estimate`` was coded by :func:`normalise_estimate`,
+    otherwise 0).
+    """
+    for k in range(order.shape[0]):  # a plain gather, then a contiguous pass: both vectorise
+        out[k] = estimate[order[k]]
+    for k in range(order.shape[0]):
+        raw = out[k]
+        valid = (raw > 0.0) & (raw >= lo) & (raw <= hi) & (raw < np.inf)
+        out[k] = raw if valid else (raw if coded else -0.0)
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _cell_terms(
+    values: np.ndarray,
+    gt: np.ndarray,
+    fb: float,
+    depth_offset: float,
+    delta: float,
+    missing_weight: float,
+) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
+    """Sums of one cell's terms; contiguous slices and no branches, so it vectorises."""
+    n_valid = 0.0
+    n_eval = 0.0
+    sum_e = 0.0
+    sum_e2 = 0.0
+    sum_rel = 0.0
+    sze = 0.0
+    bmpre = 0.0
+    d1 = 0.0
+    bad = 0.0
+    for k in range(values.shape[0]):
+        raw = np.float64(values[k])
+        weight = 1.0 if raw > 0.0 else missing_weight
+        value = abs(raw)
+        d = np.float64(gt[k])
+        e = abs(value - d)
+        rel = e / d
+        n_valid += 1.0 if raw > 0.0 else 0.0
+        n_eval += weight
+        sum_e += weight * e
+        sum_e2 += weight * e * e
+        sum_rel += weight * rel
+        sze += weight * fb * e / abs((d + depth_offset) * (value + depth_offset))
+        bmpre += weight * rel if e > delta else 0.0
+        d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
+        bad += weight if e > delta else 0.0
+    return n_valid, n_eval, sum_e, sum_e2, sum_rel, sze, bmpre, d1, bad
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _bad_count(
+    values: np.ndarray, gt: np.ndarray, threshold: float, missing_weight: float
+) -> float:  # pragma: no cover - compiled
+    """Weighted number of points of one cell with error above ``threshold``."""
+    bad = 0.0
+    for k in range(values.shape[0]):
+        raw = np.float64(values[k])
+        weight = 1.0 if raw > 0.0 else missing_weight
+        bad += weight if abs(abs(raw) - np.float64(gt[k])) > threshold else 0.0
+    return bad
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def accumulate_cells(
-    work: np.ndarray,
-    order: np.ndarray,
+    values: np.ndarray,
     offsets: np.ndarray,
     gt_sorted: np.ndarray,
-    inv_gt_sorted: np.ndarray,
-    depth_gt_sorted: np.ndarray,
     fb: float,
     depth_offset: float,
     thresholds: np.ndarray,
-    skip_missing: bool,
+    missing_weight: float,
     sums: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Accumulate every measure's terms per cell in one pass over the valid-GT pixels.
+    """Accumulate every measure's terms per cell in one pass over the valid-GT points.
 
-    ``work`` is a normalised estimate (flat view), ``order`` the pixel indices grouped by
-    cell (``offsets`` delimit the cells), ``*_sorted`` GT-side terms in the same order:
-    ``D``, ``1/D`` and ``f·B/(D + doffs + μ)``. ``depth_offset`` is ``doffs + μ``.
-    ``thresholds`` has ``MAX_THRESHOLDS`` entries: δ (bmp, bmpre) first, then the bad-x
-    thresholds, padded with ``inf``. The loop body is branch-free so it vectorises.
+    ``values`` comes from :func:`gather_estimate` and ``gt_sorted`` holds ``D`` in the
+    same (partition) order; ``offsets`` delimit the cells. ``depth_offset`` is
+    ``doffs + μ``; the SZE term ``|f·B/(D+o) − f·B/(E+o)|`` is computed as the equal
+    ``f·B·e / |(D+o)(E+o)|``, which has no cancellation. ``thresholds[0]`` is δ (bmp,
+    bmpre), the others the bad-x thresholds (``inf`` entries are unused).
+    ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
+    measures) and 1 otherwise.
     """
-    t0, t1, t2, t3 = thresholds[0], thresholds[1], thresholds[2], thresholds[3]
-    t4, t5, t6, t7 = thresholds[4], thresholds[5], thresholds[6], thresholds[7]
-    buffer = np.empty(_CHUNK, dtype=np.float64)
     for cell in range(offsets.shape[0] - 1):
         start = offsets[cell]
         stop = offsets[cell + 1]
-        n_valid = 0.0
-        n_eval = 0.0
-        sum_e = 0.0
-        sum_e2 = 0.0
-        sum_rel = 0.0
-        sze = 0.0
-        bmpre = 0.0
-        d1 = 0.0
-        b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = 0.0
-        for chunk in range(start, stop, _CHUNK):
-            size = min(_CHUNK, stop - chunk)
-            for i in range(size):  # gather: the only non-contiguous access
-                buffer[i] = work[order[chunk + i]]
-            for i in range(size):  # contiguous and branch-free: vectorised by LLVM
-                k = chunk + i
-                raw = buffer[i]
-                valid = 1.0 if raw > 0.0 else 0.0
-                weight = 1.0 if (raw > 0.0 or not skip_missing) else 0.0
-                value = abs(raw)
-                d = np.float64(gt_sorted[k])
-                e = abs(value - d)
-                rel = e * np.float64(inv_gt_sorted[k])
-                n_valid += valid
-                n_eval += weight
-                sum_e += weight * e
-                sum_e2 += weight * e * e
-                sum_rel += weight * rel
-                sze += weight * abs(depth_gt_sorted[k] - fb / (value + depth_offset))
-                bmpre += weight * rel if e > t0 else 0.0
-                d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
-                b0 += weight if e > t0 else 0.0
-                b1 += weight if e > t1 else 0.0
-                b2 += weight if e > t2 else 0.0
-                b3 += weight if e > t3 else 0.0
-                b4 += weight if e > t4 else 0.0
-                b5 += weight if e > t5 else 0.0
-                b6 += weight if e > t6 else 0.0
-                b7 += weight if e > t7 else 0.0
+        cell_values = values[start:stop]
+        cell_gt = gt_sorted[start:stop]
+        terms = _cell_terms(cell_values, cell_gt, fb, depth_offset, thresholds[0], missing_weight)
         row = sums[cell]
         row[FIELD_N] += stop - start
-        row[FIELD_VALID] += n_valid
-        row[FIELD_EVAL] += n_eval
-        row[FIELD_SUM_E] += sum_e
-        row[FIELD_SUM_E2] += sum_e2
-        row[FIELD_SUM_REL] += sum_rel
-        row[FIELD_SZE] += sze
-        row[FIELD_BMPRE] += bmpre
-        row[FIELD_D1] += d1
-        row[FIELD_BAD + 0] += b0
-        row[FIELD_BAD + 1] += b1
-        row[FIELD_BAD + 2] += b2
-        row[FIELD_BAD + 3] += b3
-        row[FIELD_BAD + 4] += b4
-        row[FIELD_BAD + 5] += b5
-        row[FIELD_BAD + 6] += b6
-        row[FIELD_BAD + 7] += b7
+        row[FIELD_VALID] += terms[0]
+        row[FIELD_EVAL] += terms[1]
+        row[FIELD_SUM_E] += terms[2]
+        row[FIELD_SUM_E2] += terms[3]
+        row[FIELD_SUM_REL] += terms[4]
+        row[FIELD_SZE] += terms[5]
+        row[FIELD_BMPRE] += terms[6]
+        row[FIELD_D1] += terms[7]
+        row[FIELD_BAD] += terms[8]
+        for t in range(1, thresholds.shape[0]):
+            if thresholds[t] < np.inf:
+                row[FIELD_BAD + t] += _bad_count(
+                    cell_values, cell_gt, thresholds[t], missing_weight
+                )
 
 
 @njit(cache=True, nogil=True)
@@ -226,7 +265,7 @@ def forward_warp_occlusion(
     return occluded
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def kmeans_1d_pass(
     values: np.ndarray, valid: np.ndarray, low: float, high: float
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
@@ -234,17 +273,49 @@ def kmeans_1d_pass(
 
     Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
     """
-    counts = np.zeros(3, dtype=np.float64)
-    sums = np.zeros(3, dtype=np.float64)
     flat_values = values.ravel()
     flat_valid = valid.ravel()
+    n0 = n1 = n2 = 0.0
+    s0 = s1 = s2 = 0.0
     for i in range(flat_values.shape[0]):
-        if flat_valid[i]:
-            v = np.float64(flat_values[i])
-            c = 0 if v <= low else (1 if v <= high else 2)
-            counts[c] += 1.0
-            sums[c] += v
-    return counts, sums
+        v = np.float64(flat_values[i]) if flat_valid[i] else 0.0
+        w = 1.0 if flat_valid[i] else 0.0
+        in0 = w if v <= low else 0.0
+        in2 = w if v > high else 0.0
+        in1 = w - in0 - in2
+        n0 += in0
+        n1 += in1
+        n2 += in2
+        s0 += in0 * v
+        s1 += in1 * v
+        s2 += in2 * v
+    return np.array([n0, n1, n2]), np.array([s0, s1, s2])
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def valid_range(values: np.ndarray, valid: np.ndarray) -> tuple[float, float]:  # pragma: no cover
+    """Smallest and largest of the valid values."""
+    flat_values = values.ravel()
+    flat_valid = valid.ravel()
+    lo = np.inf
+    hi = -np.inf
+    for i in range(flat_values.shape[0]):
+        v = np.float64(flat_values[i])
+        lo = min(lo, v) if flat_valid[i] else lo
+        hi = max(hi, v) if flat_valid[i] else hi
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def threshold_labels(values: np.ndarray, low: float, high: float) -> np.ndarray:  # pragma: no cover
+    """Class 0 above ``high``, 1 in ``(low, high]``, 2 otherwise (near / mid / far)."""
+    labels = np.empty(values.shape, dtype=np.int32)
+    flat_values = values.ravel()
+    flat_labels = labels.ravel()
+    for i in range(flat_values.shape[0]):
+        v = flat_values[i]
+        flat_labels[i] = 0 if v > high else (1 if v > low else 2)
+    return labels
 
 
 @njit(cache=True, nogil=True)
