@@ -47,7 +47,6 @@ setup(
     maintainer_email="dispeval-ros@example.org",
     description="Evaluate stereo disparity maps by set-partition criteria, SZE/BMPRE and Pareto models.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "dispeval = dispeval_ros.cli.main:main",

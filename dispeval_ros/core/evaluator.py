@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -47,6 +46,61 @@ def as_disparity(array: object, what: str) -> np.ndarray:
     if array.dtype.kind not in "fiu" or array.dtype.itemsize > 8:
         raise InputError(f"{what} must be a real-valued disparity map, got dtype {array.dtype}")
     return np.ascontiguousarray(array, dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class _CacheInputs:
+    """Everything a reference is built from, compared by content."""
+
+    gt: np.ndarray
+    camera: Camera | None
+    masks: tuple[tuple[str, np.ndarray], ...]
+    gt_right: np.ndarray | None
+    roi: np.ndarray | None
+
+    @classmethod
+    def of(
+        cls,
+        gt: np.ndarray,
+        camera: Camera | None,
+        masks: Mapping[str, np.ndarray] | None,
+        gt_right: np.ndarray | None,
+        roi: np.ndarray | None,
+    ) -> _CacheInputs:
+        named = tuple(sorted((name, np.asarray(mask)) for name, mask in (masks or {}).items()))
+        return cls(gt, camera, named, gt_right, roi)
+
+    def copy(self) -> _CacheInputs:
+        """Private copies, so later in-place changes of the caller's arrays are noticed."""
+        return _CacheInputs(
+            self.gt.copy(),
+            self.camera,
+            tuple((name, mask.copy()) for name, mask in self.masks),
+            None if self.gt_right is None else np.array(self.gt_right, copy=True),
+            None if self.roi is None else np.array(self.roi, copy=True),
+        )
+
+    def matches(self, other: _CacheInputs) -> bool:
+        """Same camera and same array contents (shapes included)."""
+        return (
+            self.camera == other.camera
+            and _same(self.gt, other.gt)
+            and len(self.masks) == len(other.masks)
+            and all(
+                a == c and _same(b, d)
+                for (a, b), (c, d) in zip(self.masks, other.masks, strict=True)
+            )
+            and _same(self.gt_right, other.gt_right)
+            and _same(self.roi, other.roi)
+        )
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and bool(
+        np.array_equal(a, b, equal_nan=a.dtype.kind == "f" and b.dtype.kind == "f")
+    )
 
 
 @dataclass(frozen=True)
@@ -120,7 +174,7 @@ class Evaluator:
         self.roi_names = dict(roi_names) if roi_names else None
         self.thresholds = thresholds_for(self.measures, self.delta)
         self._quantiles = [m for m in self.measures if quantile_level(m) is not None]
-        self._cache: OrderedDict[int, tuple[tuple[object, ...], Reference]] = OrderedDict()
+        self._cache: list[tuple[_CacheInputs, Reference]] = []
         self._cache_size = cache_size
         self._local = threading.local()
 
@@ -219,22 +273,20 @@ class Evaluator:
         gt_right: np.ndarray | None,
         roi: np.ndarray | None,
     ) -> Reference:
-        """The reference of ``gt``, reused while the same, unchanged GT comes again."""
-        extras = (camera, id(masks) if masks else None, id(gt_right), id(roi))
-        key = id(gt)
-        hit = self._cache.get(key)
-        if hit is not None:
-            cached_extras, reference = hit
-            same_content = reference.gt.shape == np.shape(gt) and np.array_equal(reference.gt, gt)
-            if cached_extras == extras and same_content:
-                self._cache.move_to_end(key)
+        """The reference of ``gt``, reused while the same GT and extras come again unchanged.
+
+        Entries hold private copies of every input and are compared by content, so changing
+        an array in place, or passing new masks in a reused dict, builds a new reference.
+        """
+        inputs = _CacheInputs.of(gt, camera, masks, gt_right, roi)
+        for index, (cached, reference) in enumerate(self._cache):
+            if cached.matches(inputs):
+                self._cache.append(self._cache.pop(index))
                 return reference
         reference = self.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
-        # keep a private copy so a caller changing its array in place invalidates the entry
-        reference = Reference(**{**reference.__dict__, "gt": reference.gt.copy()})
-        self._cache[key] = (extras, reference)
+        self._cache.append((inputs.copy(), reference))
         while len(self._cache) > self._cache_size:
-            self._cache.popitem(last=False)
+            self._cache.pop(0)
         return reference
 
     # -- method side ----------------------------------------------------------------------

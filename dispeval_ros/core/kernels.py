@@ -319,12 +319,51 @@ def threshold_labels(values: np.ndarray, low: float, high: float) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def histogram_sums(
+def best_three_split(
+    counts: np.ndarray, sums: np.ndarray, squares: np.ndarray
+) -> tuple[int, int]:  # pragma: no cover - compiled
+    """Optimal least-squares split of histogram bins into three runs ``[0,i) [i,j) [j,B)``.
+
+    Exhaustive over every pair of cuts with prefix sums: the global optimum of 3-means when
+    clusters may only change at bin edges (1-D optimal clusters are intervals).
+    """
+    bins = counts.shape[0]
+    cw = np.zeros(bins + 1)
+    cs = np.zeros(bins + 1)
+    cq = np.zeros(bins + 1)
+    for b in range(bins):
+        cw[b + 1] = cw[b] + counts[b]
+        cs[b + 1] = cs[b] + sums[b]
+        cq[b + 1] = cq[b] + squares[b]
+    best = np.inf
+    best_i = 1
+    best_j = 2
+    for i in range(1, bins - 1):
+        n0 = cw[i]
+        sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+        for j in range(i + 1, bins):
+            n1 = cw[j] - n0
+            n2 = cw[bins] - cw[j]
+            s1 = cs[j] - cs[i]
+            s2 = cs[bins] - cs[j]
+            sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
+            sse2 = (cq[bins] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
+            total = sse0 + sse1 + sse2
+            if total < best:
+                best = total
+                best_i = i
+                best_j = j
+    return best_i, best_j
+
+
+@njit(cache=True, nogil=True)
+def histogram_moments(
     values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Counts and exact value sums of the valid values in ``bins`` equal bins over [lo, hi]."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Counts, sums and sums of squares of the valid values in ``bins`` equal bins."""
     counts = np.zeros(bins, dtype=np.float64)
     sums = np.zeros(bins, dtype=np.float64)
+    squares = np.zeros(bins, dtype=np.float64)
     flat_values = values.ravel()
     flat_valid = valid.ravel()
     scale = bins / (hi - lo) if hi > lo else 0.0
@@ -334,4 +373,5 @@ def histogram_sums(
             b = min(int((v - lo) * scale), bins - 1)
             counts[b] += 1.0
             sums[b] += v
-    return counts, sums
+            squares[b] += v * v
+    return counts, sums, squares

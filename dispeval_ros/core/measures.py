@@ -108,6 +108,19 @@ def thresholds_for(measures: Sequence[str], delta: float) -> np.ndarray:
 
 
 FIELDS = k.FIELD_BAD + k.MAX_THRESHOLDS
+SUM_FIELDS = (
+    "n",
+    "n_valid",
+    "n_eval",
+    "sum_e",
+    "sum_e2",
+    "sum_rel",
+    "sze",
+    "bmpre",
+    "d1_count",
+    *(f"bad_count_{i}" for i in range(k.MAX_THRESHOLDS)),
+)
+"""Names of the accumulator columns (``bad_count_0`` is at δ, the others at the bad-x thresholds)."""
 
 
 def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
@@ -161,7 +174,9 @@ class Scores(Mapping[str, Mapping[str, float]]):
 
     def __getitem__(self, criterion: str) -> Mapping[str, float]:
         if criterion not in self._cache:
-            index = self.criteria.index(criterion)  # ValueError → KeyError below
+            if criterion not in self.criteria:
+                raise KeyError(criterion)
+            index = self.criteria.index(criterion)
             row = self.sums[index]
             values: dict[str, float] = {"n": float(row[k.FIELD_N])}
             for name in self.measures:
@@ -198,6 +213,14 @@ class Scores(Mapping[str, Mapping[str, float]]):
             ):
                 raise ConfigurationError(
                     "cannot combine scores of different criteria or thresholds"
+                )
+            if part.policy != first.policy:
+                raise ConfigurationError(
+                    f"cannot combine scores of the '{first.policy}' and '{part.policy}' missing policies"
+                )
+            if part.relative != first.relative:
+                raise ConfigurationError(
+                    "cannot combine metric SZE (with a camera) and relative SZE (without)"
                 )
         total = np.sum([part.sums for part in parts], axis=0)
         return cls(
