@@ -21,8 +21,8 @@ Conventions of the code under test that these tests rely on (METHOD.md §1–3):
   half up); boundary = the ``disc`` mask, else points within a ``width`` square of a
   4-neighbour jump > ``gap`` between two valid points, minus occluded; interior = the rest;
 - depth: deterministic 3-means (Lloyd to a fixed point, started from the optimal split of a
-  fine histogram; a value equal to a threshold goes to the farther cluster), ``near`` = largest disparities; metric ranges are
-  half-open ``[from, to)`` in depth ``Z = f·B/(d + doffs)``.
+  fine histogram; a value equal to a threshold goes to the farther cluster), ``near`` =
+  largest disparities; metric ranges are half-open ``[from, to)`` in depth ``Z = f·B/(d + doffs)``.
 """
 
 from __future__ import annotations

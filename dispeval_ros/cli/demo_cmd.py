@@ -1,16 +1,24 @@
-"""``dispeval demo``: the whole job on an embedded example (no downloads, no arguments)."""
+"""``dispeval demo``: the whole job on the bundled example (no downloads, no arguments).
+
+By default it replays the sample bag (synthetic driving, three or more OpenCV methods)
+through the offline pipeline: join, score, store, summarise. ``--single-scene`` evaluates one
+synthetic scene in memory instead.
+"""
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 from dispeval_ros.cli.output import print_json
-from dispeval_ros.cli.summary import models_text, scores_text
+from dispeval_ros.cli.progress import Progress
+from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import objective_matrix
 
-HELP = "run the whole evaluation on a synthetic stereo scene made in code"
+HELP = "run the whole evaluation on the bundled sample bag (or one synthetic scene)"
 SHOWN = ("n", "density", "bmp", "mae", "rmse", "d1", "sze", "sze_mean", "bmpre")
 
 
@@ -19,18 +27,66 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "demo",
         help=HELP,
-        description=HELP + ": a textured ground plane and boxes with exact left and right GT, "
-        "OpenCV StereoBM and StereoSGBM variants, criteria all + visibility + depth, A* Groups.",
+        description=HELP + ". The sample bag holds a few seconds of synthetic driving with exact "
+        "GT and OpenCV StereoBM/StereoSGBM variants published as DisparityImages.",
     )
-    parser.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
-    parser.add_argument("--width", type=int, default=640, help="image width (default 640)")
-    parser.add_argument("--height", type=int, default=400, help="image height (default 400)")
+    parser.add_argument("--out", type=Path, help="results folder (default: a new temporary folder)")
+    parser.add_argument("--single-scene", action="store_true",
+                        help="evaluate one synthetic scene (ground plane and boxes) in memory instead")
+    parser.add_argument("--seed", type=int, default=0, help="single scene: seed (default 0)")
+    parser.add_argument("--width", type=int, default=640, help="single scene: width (default 640)")
+    parser.add_argument("--height", type=int, default=400, help="single scene: height (default 400)")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Make the scene, run the methods, score, compare, print."""
+    """Replay the sample bag, or score the single scene."""
+    return single_scene(args) if args.single_scene else replay_sample(args)
+
+
+def replay_sample(args: argparse.Namespace) -> int:
+    """The offline pipeline on the sample bag: what ``dispeval bag`` does on a recording."""
+    from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.offline.bag_eval import evaluate_bags
+    from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
+    from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
+    from dispeval_ros.offline.summary import summarize
+
+    started = time.perf_counter()
+    out = args.out or Path(tempfile.mkdtemp(prefix="dispeval-demo-"))
+    bag = find_sample_bag()
+    if bag is None:  # not installed with the package: make it (a few seconds)
+        bag = make_sample_bag(out / "sample_drive")
+    with BagSource(bag) as source:
+        methods = {
+            topic.split("/")[2]: topic
+            for topic, info in source.topics.items()
+            if info.msgtype == "stereo_msgs/msg/DisparityImage"
+        }
+    config = CoreConfig(methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO)
+    record = {"bag": str(bag), "methods": methods, "criteria": list(config.criteria)}
+    progress = Progress("dispeval demo", enabled=not args.json)
+    with ResultsStore.create(out, record) as store:
+        evaluate_bags([bag], config, store, slice_ns=1_000_000_000,
+                      progress=lambda done, total, r: progress.update(done, total, r.frames))
+        rows = store.export_csv(out / "frames.csv")
+        summary = summarize(store)
+        problems = store.problems()
+    if args.json:
+        print_json({"results": str(out), "bag": str(bag), **summary.to_dict()})
+        return 0
+    print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
+    print(run_summary_text(summary, problems))
+    print(f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'})")
+    print(f"(done in {time.perf_counter() - started:.1f} s)")
+    return 0
+
+
+def single_scene(args: argparse.Namespace) -> int:
+    """One synthetic scene, every method scored in memory."""
     from dispeval_ros.testbed import default_methods, make_scene
 
     started = time.perf_counter()
@@ -41,30 +97,21 @@ def run(args: argparse.Namespace) -> int:
     results: dict[str, Scores] = {}
     for method in default_methods(args.width):
         estimate = method.compute(frame.left, frame.right)
-        results[method.name] = evaluator.score(
-            reference, estimate, est_range=(method.min_disparity, float("inf"))
-        )
-    objectives_from = ["sze", "bmpre"]
-    methods, names, matrix = objective_matrix(results, objectives_from)
+        results[method.name] = evaluator.score(reference, estimate, est_range=(method.min_disparity, float("inf")))
+    methods, names, matrix = objective_matrix(results, ["sze", "bmpre"])
     model = evaluate_models(methods, matrix)
     if args.json:
-        print_json(
-            {
-                "frames": [
-                    {"method": name, "criteria": s.to_dict()} for name, s in results.items()
-                ],
-                "objectives": names,
-                "models": model.to_dict(),
-            }
-        )
+        print_json({
+            "frames": [{"method": name, "criteria": s.to_dict()} for name, s in results.items()],
+            "objectives": names,
+            "models": model.to_dict(),
+        })
         return 0
     camera = frame.camera
     print(
         f"synthetic scene {args.width}×{args.height} (seed {args.seed}): ground plane and boxes, "
         f"f = {camera.f:g} px, B = {camera.baseline:g} m; {len(results)} OpenCV stereo methods\n"
-        f"partition: "
-        + ", ".join(f"{k} {v}" for k, v in reference.partition.counts().items())
-        + "\n"
+        "partition: " + ", ".join(f"{k} {v}" for k, v in reference.partition.counts().items()) + "\n"
     )
     print(scores_text(results, [m for m in SHOWN if m != "n"]))
     print("\n" + models_text(model, names))

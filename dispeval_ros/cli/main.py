@@ -7,10 +7,10 @@ import sys
 from collections.abc import Sequence
 
 from dispeval_ros import __version__
-from dispeval_ros.cli import demo_cmd, eval_cmd, models_cmd
+from dispeval_ros.cli import bag_cmd, demo_cmd, eval_cmd, make_bag_cmd, models_cmd
 from dispeval_ros.errors import DispevalError
 
-COMMANDS = (eval_cmd, models_cmd, demo_cmd)
+COMMANDS = (eval_cmd, bag_cmd, models_cmd, make_bag_cmd, demo_cmd)
 
 
 def build_parser() -> argparse.ArgumentParser:
