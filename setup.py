@@ -15,8 +15,8 @@ def requirements() -> list[str]:
     required = [
         "numpy>=1.21",
         "numba>=0.56",
-        "rosbags>=0.9.20",
-        "mcap>=1.1",
+        "rosbags>=0.11",
+        "mcap>=1.2",
         "mcap-ros2-support>=0.5",
     ]
     if importlib.util.find_spec("cv2") is None:
@@ -34,7 +34,7 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", glob("launch_scripts/*.launch.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
-        (f"share/{PACKAGE}/bags", glob("bags/*.mcap") + glob("bags/*.db3") + glob("bags/*.yaml")),
+        (f"share/{PACKAGE}/bags/sample_drive", glob("bags/sample_drive/*")),
     ],
     python_requires=">=3.10",
     install_requires=requirements(),

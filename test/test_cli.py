@@ -260,7 +260,9 @@ def test_error_in_a_real_process_has_no_traceback(tmp_path: Path) -> None:
 
 
 def test_demo_runs_and_ranks_methods(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run_cli(capsys, "demo", "--single-scene", "--json", "--width", "320", "--height", "200")
+    code, out, _ = run_cli(
+        capsys, "demo", "--single-scene", "--json", "--width", "320", "--height", "200"
+    )
     assert code == 0
     document = json.loads(out)
     methods = [frame["method"] for frame in document["frames"]]

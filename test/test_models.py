@@ -222,7 +222,7 @@ def test_measure_consistency_rejects_mismatches() -> None:
 def test_interpretation_single_superior_method() -> None:
     text = interpretation(["x", "y", "z"], [1, 2, 2], ["x"])
     assert text.splitlines() == [
-        "A* = {x}: a single method of superior performance: x (it dominates every other method).",
+        "A* = {x}: a single method of superior performance (it dominates every other method).",
         "Group 2: 2 methods of comparable performance: y, z "
         "(mutually incomparable; each dominated by at least one method of group 1).",
         "Front reduction of A* (chosen without weights, by the (u1, u2) front): x.",
@@ -232,7 +232,7 @@ def test_interpretation_single_superior_method() -> None:
 def test_interpretation_worked_check() -> None:
     text = interpretation(WORKED_METHODS, [1, 1, 2, 1], ["b"])
     assert text.splitlines() == [
-        "A* = {a, b, d}: a set of methods of comparable performance: a, b, d "
+        "A* = {a, b, d}: a set of methods of comparable performance "
         "(mutually incomparable; every method outside A* is dominated by at least one of them).",
         "Group 2: a single method: c (dominated by at least one method of group 1).",
         "Front reduction of A* (chosen without weights, by the (u1, u2) front): b.",
@@ -302,9 +302,7 @@ def test_evaluate_models_single_method() -> None:
     assert result.reduced == ["only"]
     assert result.reduction == {"only": {"u1": 3.0, "u2": 0.0}}
     assert result.middlebury == {"only": 1.0}
-    assert result.interpretation.startswith(
-        "A* = {only}: a single method of superior performance: only"
-    )
+    assert result.interpretation.startswith("A* = {only}: a single method of superior performance")
 
 
 def test_evaluate_models_nan_counts_as_worst() -> None:

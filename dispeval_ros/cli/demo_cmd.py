@@ -31,11 +31,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "GT and OpenCV StereoBM/StereoSGBM variants published as DisparityImages.",
     )
     parser.add_argument("--out", type=Path, help="results folder (default: a new temporary folder)")
-    parser.add_argument("--single-scene", action="store_true",
-                        help="evaluate one synthetic scene (ground plane and boxes) in memory instead")
+    parser.add_argument(
+        "--single-scene",
+        action="store_true",
+        help="evaluate one synthetic scene (ground plane and boxes) in memory instead",
+    )
     parser.add_argument("--seed", type=int, default=0, help="single scene: seed (default 0)")
     parser.add_argument("--width", type=int, default=640, help="single scene: width (default 640)")
-    parser.add_argument("--height", type=int, default=400, help="single scene: height (default 400)")
+    parser.add_argument(
+        "--height", type=int, default=400, help="single scene: height (default 400)"
+    )
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run)
 
@@ -66,12 +71,19 @@ def replay_sample(args: argparse.Namespace) -> int:
             for topic, info in source.topics.items()
             if info.msgtype == "stereo_msgs/msg/DisparityImage"
         }
-    config = CoreConfig(methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO)
+    config = CoreConfig(
+        methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO
+    )
     record = {"bag": str(bag), "methods": methods, "criteria": list(config.criteria)}
     progress = Progress("dispeval demo", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
-        evaluate_bags([bag], config, store, slice_ns=1_000_000_000,
-                      progress=lambda done, total, r: progress.update(done, total, r.frames))
+        evaluate_bags(
+            [bag],
+            config,
+            store,
+            slice_ns=1_000_000_000,
+            progress=lambda done, total, r: progress.update(done, total, r.frames),
+        )
         rows = store.export_csv(out / "frames.csv")
         summary = summarize(store)
         problems = store.problems()
@@ -97,21 +109,29 @@ def single_scene(args: argparse.Namespace) -> int:
     results: dict[str, Scores] = {}
     for method in default_methods(args.width):
         estimate = method.compute(frame.left, frame.right)
-        results[method.name] = evaluator.score(reference, estimate, est_range=(method.min_disparity, float("inf")))
+        results[method.name] = evaluator.score(
+            reference, estimate, est_range=(method.min_disparity, float("inf"))
+        )
     methods, names, matrix = objective_matrix(results, ["sze", "bmpre"])
     model = evaluate_models(methods, matrix)
     if args.json:
-        print_json({
-            "frames": [{"method": name, "criteria": s.to_dict()} for name, s in results.items()],
-            "objectives": names,
-            "models": model.to_dict(),
-        })
+        print_json(
+            {
+                "frames": [
+                    {"method": name, "criteria": s.to_dict()} for name, s in results.items()
+                ],
+                "objectives": names,
+                "models": model.to_dict(),
+            }
+        )
         return 0
     camera = frame.camera
     print(
         f"synthetic scene {args.width}×{args.height} (seed {args.seed}): ground plane and boxes, "
         f"f = {camera.f:g} px, B = {camera.baseline:g} m; {len(results)} OpenCV stereo methods\n"
-        "partition: " + ", ".join(f"{k} {v}" for k, v in reference.partition.counts().items()) + "\n"
+        "partition: "
+        + ", ".join(f"{k} {v}" for k, v in reference.partition.counts().items())
+        + "\n"
     )
     print(scores_text(results, [m for m in SHOWN if m != "n"]))
     print("\n" + models_text(model, names))

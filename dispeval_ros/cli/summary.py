@@ -64,18 +64,26 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
     for sequence in summary.sequences:
-        parts.append(f"\n=== sequence {sequence.sequence}: {sequence.common_frames} frames with every method")
+        parts.append(
+            f"\n=== sequence {sequence.sequence}: {sequence.common_frames} frames with every method"
+        )
         parts.append(
             table(
                 ["method", "matched", "unmatched", "dropped", "failed"],
-                [[m, c.matched, c.unmatched, c.dropped, c.failed] for m, c in sequence.counts.items()],
+                [
+                    [m, c.matched, c.unmatched, c.dropped, c.failed]
+                    for m, c in sequence.counts.items()
+                ],
             )
         )
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             shown = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
             for criterion in first.criteria:
-                rows = [[m, s[criterion]["n"], *(s[criterion][x] for x in shown)] for m, s in sequence.scores.items()]
+                rows = [
+                    [m, s[criterion]["n"], *(s[criterion][x] for x in shown)]
+                    for m, s in sequence.scores.items()
+                ]
                 parts.append(f"\ncriterion: {criterion} (summed over the common frames)")
                 parts.append(table(["method", "n", *shown], rows))
         if sequence.models is not None:
@@ -84,5 +92,7 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         parts.append(f"\n=== all {len(summary.sequences)} sequences")
         parts.append(models_text(summary.overall, summary.overall_objectives))
     if problems:
-        parts.append(f"\n{len(problems)} problem(s) recorded (table 'problems'); first: {problems[0].message}")
+        parts.append(
+            f"\n{len(problems)} problem(s) recorded (table 'problems'); first: {problems[0].message}"
+        )
     return "\n".join(parts)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -127,29 +127,39 @@ def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
     return scale * numerator / denominator if denominator > 0 else math.nan
 
 
+def _mean(field: int, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+    return lambda sums: _ratio(sums[field], sums[k.FIELD_EVAL], scale)
+
+
+def _total(field: int) -> Callable[[np.ndarray], float]:
+    return lambda sums: float(sums[field])
+
+
+_FROM_SUMS: dict[str, Callable[[np.ndarray], float]] = {
+    "bmp": _mean(k.FIELD_BAD, 100.0),
+    "bmp_count": _total(k.FIELD_BAD),
+    "mae": _mean(k.FIELD_SUM_E),
+    "mse": _mean(k.FIELD_SUM_E2),
+    "rmse": lambda sums: math.sqrt(_ratio(sums[k.FIELD_SUM_E2], sums[k.FIELD_EVAL])),
+    "mre": _mean(k.FIELD_SUM_REL),
+    "sze": _total(k.FIELD_SZE),
+    "sze_mean": _mean(k.FIELD_SZE),
+    "bmpre": _total(k.FIELD_BMPRE),
+    "bmpre_mean": _mean(k.FIELD_BMPRE),
+    "d1": _mean(k.FIELD_D1, 100.0),
+    "density": lambda sums: _ratio(sums[k.FIELD_VALID], sums[k.FIELD_N]),
+}
+
+
 def measure_from_sums(name: str, sums: np.ndarray, thresholds: np.ndarray) -> float:
     """One measure of one criterion from its accumulated sums (``nan`` where undefined)."""
-    n_eval = float(sums[k.FIELD_EVAL])
-    simple = {
-        "bmp": lambda: _ratio(sums[k.FIELD_BAD], n_eval, 100.0),
-        "bmp_count": lambda: float(sums[k.FIELD_BAD]),
-        "mae": lambda: _ratio(sums[k.FIELD_SUM_E], n_eval),
-        "mse": lambda: _ratio(sums[k.FIELD_SUM_E2], n_eval),
-        "rmse": lambda: math.sqrt(_ratio(sums[k.FIELD_SUM_E2], n_eval)),
-        "mre": lambda: _ratio(sums[k.FIELD_SUM_REL], n_eval),
-        "sze": lambda: float(sums[k.FIELD_SZE]),
-        "sze_mean": lambda: _ratio(sums[k.FIELD_SZE], n_eval),
-        "bmpre": lambda: float(sums[k.FIELD_BMPRE]),
-        "bmpre_mean": lambda: _ratio(sums[k.FIELD_BMPRE], n_eval),
-        "d1": lambda: _ratio(sums[k.FIELD_D1], n_eval, 100.0),
-        "density": lambda: _ratio(sums[k.FIELD_VALID], sums[k.FIELD_N]),
-    }
-    if name in simple:
-        return float(simple[name]())
+    derive = _FROM_SUMS.get(name)
+    if derive is not None:
+        return float(derive(sums))
     threshold = bad_threshold(name)
     if threshold is not None:
         column = int(np.flatnonzero(thresholds[1:] == threshold)[0]) + 1
-        return _ratio(sums[k.FIELD_BAD + column], n_eval, 100.0)
+        return _ratio(sums[k.FIELD_BAD + column], sums[k.FIELD_EVAL], 100.0)
     raise ConfigurationError(f"measure '{name}' is not derived from sums")
 
 

@@ -305,14 +305,14 @@ def interpretation(methods: Sequence[str], groups: GroupsLike, reduced_names: Se
         if group == 1:
             if len(members) == 1:
                 lines.append(
-                    f"A* = {{{members[0]}}}: a single method of superior performance: "
-                    f"{members[0]} (it dominates every other method)."
+                    f"A* = {{{members[0]}}}: a single method of superior performance "
+                    "(it dominates every other method)."
                 )
             else:
                 lines.append(
-                    f"A* = {{{_join(members)}}}: a set of methods of comparable performance: "
-                    f"{_join(members)} (mutually incomparable; every method outside A* is "
-                    "dominated by at least one of them)."
+                    f"A* = {{{_join(members)}}}: a set of methods of comparable performance "
+                    "(mutually incomparable; every method outside A* is dominated by at least "
+                    "one of them)."
                 )
         elif len(members) == 1:
             lines.append(

@@ -1,5 +1,6 @@
-"""File readers of the core engine: disparity maps, masks, calibrations and scene folders."""
+"""I/O adapters around the core: files, dataset folders, ROS messages, bags, results database."""
 
+from dispeval_ros.io.bags import BagSource, BagWriter, TopicInfo, require_topic
 from dispeval_ros.io.calib import read_calib
 from dispeval_ros.io.files import (
     read_disparity,
@@ -8,16 +9,44 @@ from dispeval_ros.io.files import (
     write_disparity_png16,
     write_pfm,
 )
+from dispeval_ros.io.messages import (
+    DisparityFrame,
+    ImageFrame,
+    camera_from_infos,
+    disparity_from_msg,
+    gt_disparity,
+    image_from_msg,
+    stamp_ns,
+)
 from dispeval_ros.io.scenes import Scene, list_frames, load_scene
+from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
+from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
 
 __all__ = [
+    "BagSource",
+    "BagWriter",
+    "DisparityFrame",
+    "FrameScores",
+    "ImageFrame",
+    "MatchCounts",
+    "Problem",
+    "ResultsStore",
     "Scene",
+    "TopicInfo",
+    "camera_from_infos",
+    "disparity_from_msg",
+    "gt_disparity",
+    "image_from_msg",
     "list_frames",
     "load_scene",
     "read_calib",
     "read_disparity",
     "read_mask",
+    "read_objectives_csv",
     "read_pfm",
+    "require_topic",
+    "stamp_ns",
     "write_disparity_png16",
+    "write_objectives_csv",
     "write_pfm",
 ]

@@ -1,0 +1,85 @@
+"""End-to-end offline speed: read + decode + join + score + store, in matched method-frames/s.
+
+    python bench/bench_bag.py [--frames 60] [--storage rosbag2-mcap]
+
+Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way), then times
+the reader alone (the baseline: iterate and deserialize every message), `dispeval bag` in one
+process, and with --jobs 2. Prints rates and ratios; asserts nothing (machines are noisy).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.live.core import CoreConfig
+from dispeval_ros.offline.bag_eval import evaluate_bags
+from dispeval_ros.offline.make_bag import (
+    GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
+    disparity_topic,
+    synthetic_frames,
+    write_bag,
+)
+from dispeval_ros.testbed import default_methods
+
+METHODS = ("bm_fast", "sgbm", "sgbm_3way")
+
+
+def main() -> None:
+    """Write the bag, then time reading alone and the whole pipeline."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=60)
+    parser.add_argument("--storage", default="rosbag2-mcap")
+    args = parser.parse_args()
+    root = Path(tempfile.mkdtemp(prefix="dispeval-bench-"))
+    bag = root / "drive"
+    methods = [m for m in default_methods(1242) if m.name in METHODS]
+    started = time.perf_counter()
+    write_bag(
+        bag,
+        synthetic_frames(args.frames, 1242, 375, 10.0, seed=5),
+        storage=args.storage,
+        methods=methods,
+    )
+    print(
+        f"wrote {args.frames} frames of 1242×375 ({args.storage}) "
+        f"in {time.perf_counter() - started:.1f} s: {bag}"
+    )
+    config = CoreConfig(
+        methods={m: disparity_topic(m) for m in METHODS},
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+    )
+    started = time.perf_counter()
+    count = 0
+    with BagSource(bag) as source:
+        for _ in source.messages(list(config.topics)):
+            count += 1
+    read_seconds = time.perf_counter() - started
+    method_frames = args.frames * len(METHODS)
+    print(
+        f"\nreader alone: {count} messages in {read_seconds:.2f} s: "
+        f"{method_frames / read_seconds:7.1f} method-frames/s (baseline)"
+    )
+    for jobs in (1, 2):
+        out = root / f"out{jobs}"
+        started = time.perf_counter()
+        with ResultsStore.create(out, {"jobs": jobs}) as store:
+            report = evaluate_bags([bag], config, store, jobs=jobs, slice_ns=1_000_000_000)
+        seconds = time.perf_counter() - started
+        rate = report.frames / seconds
+        print(
+            f"dispeval bag, --jobs {jobs}: {report.frames} matched method-frames in {seconds:.2f} s: "
+            f"{rate:7.1f} method-frames/s ({rate / (method_frames / read_seconds):.2f}× the reader alone)"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,577 @@
+"""Conversion between ROS messages and numpy, without ROS.
+
+The decode functions are duck-typed: they read attributes, so they accept the message
+dataclasses of rosbags' typestores (ROS 2 field names such as ``t``, ``p``, ``k`` and the ROS 1
+ones ``T``, ``P``, ``K``), the dynamic objects of ``mcap_ros2`` and rclpy's messages alike.
+Pixel buffers may be ``bytes``, ``bytearray``, ``memoryview``, ``array.array`` or a numpy
+``uint8`` array; they are converted with numpy views (no per-pixel Python loop), honouring
+``step`` (row padding) and ``is_bigendian``. Every array returned is a fresh, C-contiguous,
+native-endian copy, so it never aliases a message buffer.
+
+The encode functions build messages of a given rosbags typestore (ROS 2 or ROS 1), as the ROS 2
+drivers publish them, to write bags.
+
+Every problem with a message raises a :mod:`dispeval_ros.errors` exception whose one-line
+message names the topic, what was expected and what came.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.errors import CalibrationError, ConfigurationError, InputError
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+__all__ = [
+    "GT_ENCODINGS",
+    "IMAGE_ENCODINGS",
+    "DisparityFrame",
+    "ImageFrame",
+    "camera_from_info_and_baseline",
+    "camera_from_infos",
+    "camera_info_to_msg",
+    "disparity_from_msg",
+    "disparity_to_msg",
+    "gt_disparity",
+    "image_from_msg",
+    "image_to_msg",
+    "stamp_ns",
+]
+
+_NS = 1_000_000_000
+
+#: ``sensor_msgs/Image`` encodings :func:`image_from_msg` decodes → (dtype, channels).
+IMAGE_ENCODINGS: Mapping[str, tuple[type[np.generic], int]] = {
+    "32FC1": (np.float32, 1),
+    "64FC1": (np.float64, 1),
+    "16UC1": (np.uint16, 1),
+    "mono16": (np.uint16, 1),
+    "8UC1": (np.uint8, 1),
+    "mono8": (np.uint8, 1),
+    "rgb8": (np.uint8, 3),
+    "bgr8": (np.uint8, 3),
+}
+_CANONICAL = {name.lower(): name for name in IMAGE_ENCODINGS}
+
+#: Encodings :func:`gt_disparity` accepts for ground truth (disparity or depth).
+GT_ENCODINGS = ("32FC1", "64FC1", "16UC1", "mono16")
+_GT_KINDS = ("disparity", "depth")
+#: Default scale of 16-bit ground truth: KITTI disparity (value / 256) and depth in millimetres.
+_INT_SCALE = {"disparity": 256.0, "depth": 1000.0}
+#: Camera units whose baseline can be converted to metres for depth ground truth.
+_METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+
+# -- small helpers --------------------------------------------------------------------------
+
+
+def _where(topic: str, what: str) -> str:
+    """``'DisparityImage on /topic'`` or ``'DisparityImage message'`` for error messages."""
+    return f"{what} on {topic}" if topic else f"{what} message"
+
+
+def _field(msg: Any, names: tuple[str, ...], where: str) -> Any:
+    """The first of ``names`` the message has (ROS 2 and ROS 1 spellings)."""
+    for name in names:
+        value = getattr(msg, name, None)
+        if value is not None:
+            return value
+    raise InputError(
+        f"{where}: message of type {type(msg).__name__} has no field '{names[0]}'"
+        " (is it the right message type?)"
+    )
+
+
+def _int(msg: Any, name: str, where: str) -> int:
+    value = _field(msg, (name,), where)
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: field '{name}' must be an integer, got {value!r}") from None
+
+
+def _bytes(data: Any, where: str) -> np.ndarray:
+    """A 1-D uint8 view of a message's ``data`` field (copy only where unavoidable)."""
+    if isinstance(data, np.ndarray):
+        flat = data.reshape(-1)
+        if flat.dtype == np.uint8:
+            return flat
+        if flat.dtype.itemsize == 1 or flat.dtype.kind in "SV":
+            return np.ascontiguousarray(flat).view(np.uint8).reshape(-1)
+        raise InputError(f"{where}: image data must be uint8 bytes, got a {data.dtype} array")
+    if isinstance(data, str):
+        raise InputError(f"{where}: image data must be bytes, got a str")
+    try:
+        return np.frombuffer(data, dtype=np.uint8)
+    except (TypeError, ValueError, BufferError):
+        pass
+    try:
+        return np.frombuffer(bytes(data), dtype=np.uint8)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{where}: image data must be bytes, got {type(data).__name__}") from None
+
+
+def _pixels(image: Any, where: str, dtype: type[np.generic], channels: int) -> np.ndarray:
+    """Decode a ``sensor_msgs/Image`` payload into a native, owned H×W(×C) array."""
+    height = _int(image, "height", where)
+    width = _int(image, "width", where)
+    step = _int(image, "step", where)
+    bigendian = bool(getattr(image, "is_bigendian", 0))
+    if height <= 0 or width <= 0:
+        raise InputError(f"{where}: image is empty ({width}×{height} px)")
+    pixel = np.dtype(dtype).itemsize * channels
+    row_bytes = width * pixel
+    if step < row_bytes:
+        raise InputError(
+            f"{where}: step {step} is smaller than width·bytes per pixel = {width}·{pixel}"
+            f" = {row_bytes}"
+        )
+    raw = _bytes(_field(image, ("data",), where), where)
+    needed = height * step
+    if raw.size < needed:
+        raise InputError(
+            f"{where}: image data has {raw.size} bytes, expected height·step = "
+            f"{height}·{step} = {needed}"
+        )
+    rows = raw[:needed].reshape(height, step)
+    if step != row_bytes:
+        rows = rows[:, :row_bytes]
+    stored = np.dtype(dtype).newbyteorder(">" if bigendian else "<")
+    values = np.ascontiguousarray(rows).view(stored)
+    # astype to the native dtype copies (and byte-swaps big-endian data) in one pass.
+    out = values.astype(np.dtype(dtype), copy=True)
+    return out.reshape(height, width, channels) if channels > 1 else out.reshape(height, width)
+
+
+def _encoding(image: Any, where: str) -> str:
+    return str(_field(image, ("encoding",), where))
+
+
+# -- decode ---------------------------------------------------------------------------------
+
+
+def stamp_ns(header: Any) -> int:
+    """Nanoseconds of a ``std_msgs/Header`` (or of its ``stamp``): ``sec·1e9 + nanosec``.
+
+    ROS 1 messages deserialised by rosbags have ``sec``/``nanosec`` too; rospy's ``secs``/``nsecs``
+    are also accepted.
+    """
+    stamp = getattr(header, "stamp", header)
+    sec = getattr(stamp, "sec", None)
+    nanosec = getattr(stamp, "nanosec", None)
+    if sec is None or nanosec is None:
+        sec = getattr(stamp, "secs", None)
+        nanosec = getattr(stamp, "nsecs", None)
+    if sec is None or nanosec is None:
+        raise InputError(
+            f"expected a std_msgs/Header or builtin_interfaces/Time with sec and nanosec,"
+            f" got {type(header).__name__}"
+        )
+    return int(sec) * _NS + int(nanosec)
+
+
+@dataclass(frozen=True, eq=False)
+class DisparityFrame:
+    """A decoded ``stereo_msgs/DisparityImage``: the map and the fields the evaluation needs.
+
+    ``disparity`` holds the values as published, including stereo_image_proc's invalid marker
+    ``min_disparity − 1``: the core treats values outside :attr:`est_range` or ≤ 0 as missing.
+    (Compared by identity: the array makes field-wise equality ambiguous.)
+    """
+
+    stamp: int
+    frame_id: str
+    disparity: np.ndarray
+    f: float
+    t: float
+    min_disparity: float
+    max_disparity: float
+    delta_d: float
+
+    @property
+    def est_range(self) -> tuple[float, float]:
+        """``(min_disparity, max_disparity)``, or ``(-inf, inf)`` when unset.
+
+        Unset means both are 0, either is not finite, or ``max < min``.
+        """
+        low, high = self.min_disparity, self.max_disparity
+        unset = (
+            (low == 0 and high == 0)
+            or not (math.isfinite(low) and math.isfinite(high))
+            or high < low
+        )
+        return (-math.inf, math.inf) if unset else (low, high)
+
+    @property
+    def camera(self) -> Camera | None:
+        """``Camera(f, t)`` when the message carries a focal length and baseline (> 0)."""
+        f, t = self.f, self.t
+        if math.isfinite(f) and math.isfinite(t) and f > 0 and t > 0:
+            return Camera(f, t)
+        return None
+
+
+def disparity_from_msg(msg: Any, topic: str = "") -> DisparityFrame:
+    """Decode a ``stereo_msgs/msg/DisparityImage`` (ROS 2 or ROS 1 field names).
+
+    The image must be ``32FC1``. ``valid_window`` is deliberately ignored: drivers often leave it
+    wrong (zero, or the matcher's border only), so using it would discard good pixels; invalid
+    pixels are recognised by their value instead (see :attr:`DisparityFrame.est_range`).
+    """
+    where = _where(topic, "DisparityImage")
+    image = _field(msg, ("image",), where)
+    encoding = _encoding(image, where)
+    if encoding.upper() != "32FC1":
+        raise InputError(f"{where}: image encoding is '{encoding}', expected 32FC1")
+    disparity = _pixels(image, where, np.float32, 1)
+    header = _field(msg, ("header",), where)
+    return DisparityFrame(
+        stamp=stamp_ns(header),
+        frame_id=str(getattr(header, "frame_id", "")),
+        disparity=disparity,
+        f=float(_field(msg, ("f",), where)),
+        t=float(_field(msg, ("t", "T"), where)),
+        min_disparity=float(_field(msg, ("min_disparity",), where)),
+        max_disparity=float(_field(msg, ("max_disparity",), where)),
+        delta_d=float(getattr(msg, "delta_d", 0.0)),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ImageFrame:
+    """A decoded ``sensor_msgs/Image``: float32/float64/uint16/uint8, H×W or H×W×3.
+
+    Colour images keep the channel order their ``encoding`` names (rgb8 or bgr8).
+    """
+
+    stamp: int
+    frame_id: str
+    encoding: str
+    array: np.ndarray
+
+
+def image_from_msg(msg: Any, topic: str = "") -> ImageFrame:
+    """Decode a ``sensor_msgs/msg/Image`` of one of :data:`IMAGE_ENCODINGS`."""
+    where = _where(topic, "Image")
+    raw_encoding = _encoding(msg, where)
+    encoding = _CANONICAL.get(raw_encoding.lower())
+    if encoding is None:
+        raise InputError(
+            f"{where}: image encoding '{raw_encoding}' is not supported; expected one of "
+            + ", ".join(IMAGE_ENCODINGS)
+        )
+    dtype, channels = IMAGE_ENCODINGS[encoding]
+    array = _pixels(msg, where, dtype, channels)
+    header = _field(msg, ("header",), where)
+    return ImageFrame(stamp_ns(header), str(getattr(header, "frame_id", "")), encoding, array)
+
+
+def gt_disparity(
+    frame: ImageFrame,
+    kind: str = "disparity",
+    scale: float | None = None,
+    camera: Camera | None = None,
+    topic: str = "",
+) -> np.ndarray:
+    """Ground-truth disparity (float32, px) from a decoded GT image.
+
+    ``kind="disparity"``: float images as they are, 16-bit ones ``value / scale`` (default 256,
+    KITTI). ``kind="depth"``: float images in metres, 16-bit ones ``value / scale`` (default
+    1000: millimetres → metres), converted by ``d = f·B/Z − doffs``; ``Z ≤ 0`` or non-finite
+    gives ``0`` (no ground truth). If ``scale`` is given for a float image, the values are
+    divided by it as well. The baseline is converted to metres when the camera's unit is m, cm
+    or mm; for other units the depth is taken to be in the camera's unit.
+    """
+    where = _where(topic, "ground-truth Image")
+    if kind not in _GT_KINDS:
+        raise ConfigurationError(
+            f"ground-truth kind must be one of {', '.join(_GT_KINDS)}, got '{kind}'"
+        )
+    array = frame.array
+    if frame.encoding not in GT_ENCODINGS or array.ndim != 2:
+        raise InputError(
+            f"{where}: ground-truth encoding '{frame.encoding}' is not supported; expected "
+            + ", ".join(GT_ENCODINGS)
+        )
+    is_int = array.dtype == np.uint16
+    if scale is None:
+        scale = _INT_SCALE[kind] if is_int else 1.0
+    elif not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
+        raise ConfigurationError(f"ground-truth scale must be a number > 0, got {scale!r}")
+
+    if kind == "disparity":
+        values = array.astype(np.float32)
+        if scale != 1.0:
+            values /= np.float32(scale)
+        return values
+
+    if camera is None:
+        raise CalibrationError(
+            f"{where}: depth ground truth needs the camera (f, baseline);"
+            " give the CameraInfo topics or a calibration"
+        )
+    depth = array.astype(np.float64)
+    if scale != 1.0:
+        depth /= scale
+    fb = camera.f * camera.baseline * _METRES_PER_UNIT.get(camera.unit, 1.0)
+    valid = np.isfinite(depth) & (depth > 0)
+    disparity = np.zeros(depth.shape, dtype=np.float64)
+    np.divide(fb, depth, out=disparity, where=valid)
+    if camera.doffs:
+        disparity[valid] -= camera.doffs
+    return disparity.astype(np.float32)
+
+
+def _projection(info: Any, where: str) -> np.ndarray:
+    """The 3×4 projection ``P`` of a CameraInfo as 12 float64 values (``p`` or ``P``)."""
+    raw = _field(info, ("p", "P"), where)
+    try:
+        values = np.asarray(raw, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise CalibrationError(f"{where}: P must be 12 numbers, got {raw!r}") from None
+    if values.size != 12:
+        raise CalibrationError(f"{where}: P must have 12 values, got {values.size}")
+    return values
+
+
+def _focal(values: np.ndarray, where: str) -> float:
+    f = float(values[0])
+    if not (math.isfinite(f) and f > 0):
+        raise CalibrationError(
+            f"{where} has P[0] = {f:g}: expected the focal length in px (> 0);"
+            " is the camera calibrated?"
+        )
+    return f
+
+
+def camera_from_infos(left: Any, right: Any, left_topic: str = "", right_topic: str = "") -> Camera:
+    """The stereo camera from the left and right rectified ``sensor_msgs/CameraInfo``.
+
+    ``f = P_left[0]``, ``B = (P_left[3] − P_right[3]) / P_right[0]`` (``−P_right[3] / P_right[0]``
+    for ROS-rectified pairs, whose left ``P[3]`` is 0) and ``doffs = P_right[2] − P_left[2]``.
+    """
+    left_where = f"CameraInfo on {left_topic}" if left_topic else "the left CameraInfo"
+    right_where = f"CameraInfo on {right_topic}" if right_topic else "the right CameraInfo"
+    p_left = _projection(left, left_where)
+    p_right = _projection(right, right_where)
+    f = _focal(p_left, left_where)
+    f_right = _focal(p_right, right_where)
+    if abs(f_right - f) > 0.01 * f:
+        raise CalibrationError(
+            f"{left_where} and {right_where} have focal lengths P[0] = {f:g} and {f_right:g}:"
+            " not a rectified stereo pair"
+        )
+    tx = float(p_right[3]) + 0.0  # + 0.0 turns −0 into 0 for the message
+    tx_left = float(p_left[3])
+    if not (math.isfinite(tx) and math.isfinite(tx_left)):
+        raise CalibrationError(f"{right_where} has P[3] = {tx:g}: expected −f·B, a finite number")
+    baseline = (tx_left - tx) / f_right
+    if baseline == 0:
+        raise CalibrationError(
+            f"{right_where} has P[3] = {tx:g}: zero baseline; is this the right camera's info?"
+        )
+    if baseline < 0:
+        raise CalibrationError(
+            f"{right_where} has P[3] = {tx:g}: negative baseline {baseline:g};"
+            " are the left and right CameraInfo topics swapped?"
+        )
+    doffs = float(p_right[2] - p_left[2])
+    if not math.isfinite(doffs):
+        raise CalibrationError(f"{right_where} has P[2] = {p_right[2]:g}: expected a finite cx")
+    return Camera(f, baseline, doffs)
+
+
+def camera_from_info_and_baseline(left: Any, baseline: float, topic: str = "") -> Camera:
+    """The camera from one rectified CameraInfo (``f = P[0]``) and a known baseline."""
+    where = f"CameraInfo on {topic}" if topic else "the CameraInfo"
+    f = _focal(_projection(left, where), where)
+    if not (isinstance(baseline, (int, float)) and math.isfinite(baseline) and baseline > 0):
+        raise CalibrationError(f"baseline for {where} must be a number > 0, got {baseline!r}")
+    return Camera(f, float(baseline))
+
+
+# -- encode ---------------------------------------------------------------------------------
+
+
+def _build(typestore: Typestore, typename: str, values: Mapping[str, Any]) -> Any:
+    """A message of ``typename`` from ``values`` keyed by lower-case (ROS 2) field names.
+
+    Fields are matched case-insensitively so ROS 1 stores (``T``, ``P``, ``K``) work too; a
+    ROS 1 header's ``seq`` is 0.
+    """
+    try:
+        cls = typestore.types[typename]
+        names = [name for name, _ in typestore.fielddefs[typename][1]]
+    except KeyError:
+        raise ConfigurationError(f"the typestore has no message type {typename}") from None
+    kwargs: dict[str, Any] = {}
+    for name in names:
+        if name in values:
+            kwargs[name] = values[name]
+        elif name.lower() in values:
+            kwargs[name] = values[name.lower()]
+        elif name == "seq":
+            kwargs[name] = 0
+        else:
+            raise ConfigurationError(f"cannot fill field '{name}' of {typename}")
+    return cls(**kwargs)
+
+
+def _header(typestore: Typestore, stamp: int, frame_id: str) -> Any:
+    sec, nanosec = divmod(int(stamp), _NS)
+    time = _build(typestore, "builtin_interfaces/msg/Time", {"sec": sec, "nanosec": nanosec})
+    return _build(typestore, "std_msgs/msg/Header", {"stamp": time, "frame_id": frame_id})
+
+
+def _roi(typestore: Typestore, width: int = 0, height: int = 0) -> Any:
+    return _build(
+        typestore,
+        "sensor_msgs/msg/RegionOfInterest",
+        {"x_offset": 0, "y_offset": 0, "height": height, "width": width, "do_rectify": False},
+    )
+
+
+def _image(typestore: Typestore, array: np.ndarray, header: Any, encoding: str) -> Any:
+    """A ``sensor_msgs/Image`` of a little-endian, unpadded array (data is a uint8 view)."""
+    dtype, channels = IMAGE_ENCODINGS[encoding]
+    # A copy, so the message does not change when the caller reuses its array.
+    data = np.array(array, dtype=np.dtype(dtype).newbyteorder("<"), order="C", copy=True)
+    height, width = data.shape[:2]
+    return _build(
+        typestore,
+        "sensor_msgs/msg/Image",
+        {
+            "header": header,
+            "height": height,
+            "width": width,
+            "encoding": encoding,
+            "is_bigendian": 0,
+            "step": width * channels * data.itemsize,
+            "data": data.reshape(-1).view(np.uint8),
+        },
+    )
+
+
+def disparity_to_msg(
+    typestore: Typestore,
+    disparity: np.ndarray,
+    stamp_ns: int,
+    frame_id: str,
+    f: float,
+    t: float,
+    min_disparity: float,
+    max_disparity: float,
+    delta_d: float = 1.0 / 16.0,
+) -> Any:
+    """A ``stereo_msgs/msg/DisparityImage`` as ROS 2 stereo_image_proc publishes it.
+
+    32FC1 little-endian image with ``step = 4·width``; ``valid_window`` covers the whole image;
+    the image's header equals the message's.
+    """
+    array = np.asarray(disparity)
+    if array.ndim != 2 or array.size == 0:
+        raise ConfigurationError(
+            f"disparity must be a non-empty H×W array, got shape {array.shape}"
+        )
+    header = _header(typestore, stamp_ns, frame_id)
+    height, width = array.shape
+    return _build(
+        typestore,
+        "stereo_msgs/msg/DisparityImage",
+        {
+            "header": header,
+            "image": _image(typestore, array.astype(np.float32, copy=False), header, "32FC1"),
+            "f": float(f),
+            "t": float(t),
+            "valid_window": _roi(typestore, width, height),
+            "min_disparity": float(min_disparity),
+            "max_disparity": float(max_disparity),
+            "delta_d": float(delta_d),
+        },
+    )
+
+
+def image_to_msg(
+    typestore: Typestore, array: np.ndarray, stamp_ns: int, frame_id: str, encoding: str
+) -> Any:
+    """A ``sensor_msgs/msg/Image`` of one of :data:`IMAGE_ENCODINGS` (little-endian, unpadded).
+
+    Float encodings accept any real array; integer encodings need integer values in range.
+    """
+    name = _CANONICAL.get(encoding.lower())
+    if name is None:
+        raise ConfigurationError(
+            f"image encoding '{encoding}' is not supported; expected one of "
+            + ", ".join(IMAGE_ENCODINGS)
+        )
+    dtype, channels = IMAGE_ENCODINGS[name]
+    values = np.asarray(array)
+    if values.ndim == 3 and values.shape[2] == 1 and channels == 1:
+        values = values[:, :, 0]
+    expected_ndim = 2 if channels == 1 else 3
+    if (
+        values.ndim != expected_ndim
+        or values.size == 0
+        or (channels > 1 and values.shape[2] != channels)
+    ):
+        shape = "H×W" if channels == 1 else f"H×W×{channels}"
+        raise ConfigurationError(
+            f"{name} needs a non-empty {shape} array, got shape {values.shape}"
+        )
+    if np.issubdtype(dtype, np.integer) and values.dtype != dtype:
+        info = np.iinfo(np.dtype(dtype))
+        if not (np.issubdtype(values.dtype, np.integer) or values.dtype == np.bool_):
+            raise ConfigurationError(f"{name} needs an integer array, got {values.dtype}")
+        if values.size and (values.min() < info.min or values.max() > info.max):
+            raise ConfigurationError(f"{name} values must be in [{info.min}, {info.max}]")
+    header = _header(typestore, stamp_ns, frame_id)
+    return _image(typestore, values, header, name)
+
+
+def camera_info_to_msg(
+    typestore: Typestore,
+    camera: Camera,
+    width: int,
+    height: int,
+    stamp_ns: int,
+    frame_id: str,
+    right: bool,
+    cx: float | None = None,
+    cy: float | None = None,
+) -> Any:
+    """A rectified pinhole ``sensor_msgs/msg/CameraInfo`` of the left or right camera.
+
+    ``K = [f 0 cx; 0 f cy; 0 0 1]``, ``R = I``, ``D = 0`` (plumb_bob) and ``P = [K | t]`` with
+    ``t = (−f·B, 0, 0)`` for the right camera. The principal point defaults to the image centre
+    ``(width/2 − 0.5, height/2 − 0.5)``; the right camera's ``cx`` is ``cx + doffs``.
+    """
+    cx_left = width / 2.0 - 0.5 if cx is None else float(cx)
+    cy_ = height / 2.0 - 0.5 if cy is None else float(cy)
+    f = float(camera.f)
+    cx_ = cx_left + camera.doffs if right else cx_left
+    tx = -f * camera.baseline if right else 0.0
+    return _build(
+        typestore,
+        "sensor_msgs/msg/CameraInfo",
+        {
+            "header": _header(typestore, stamp_ns, frame_id),
+            "height": int(height),
+            "width": int(width),
+            "distortion_model": "plumb_bob",
+            "d": np.zeros(5, dtype=np.float64),
+            "k": np.array([f, 0, cx_, 0, f, cy_, 0, 0, 1], dtype=np.float64),
+            "r": np.eye(3, dtype=np.float64).reshape(-1),
+            "p": np.array([f, 0, cx_, tx, 0, f, cy_, 0, 0, 0, 1, 0], dtype=np.float64),
+            "binning_x": 0,
+            "binning_y": 0,
+            "roi": _roi(typestore),
+        },
+    )

@@ -1,0 +1,144 @@
+"""Per-sequence and overall summaries of a results database: scores, A* Groups, reduced set.
+
+Sums such as SZE and BMPRE grow with the number of points, so methods are compared on the
+frames that *every* method delivered (the common stamps) only: a method that dropped frames
+is not rewarded with smaller sums. Sequence scores are sums of per-frame sums.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dispeval_ros.core import ModelResult, Scores, evaluate_models
+from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.store import MatchCounts, ResultsStore
+
+GRANULARITIES = ("sequence", "frame")
+DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
+
+
+@dataclass
+class SequenceSummary:
+    """One sequence: counts, totals over the common frames, and the models on them."""
+
+    sequence: str
+    counts: dict[str, MatchCounts]
+    scores: dict[str, Scores]
+    common_frames: int
+    objectives: list[str]
+    models: ModelResult | None
+
+
+@dataclass
+class RunSummary:
+    """Every sequence, and the models over all sequences together."""
+
+    granularity: str
+    measures: list[str]
+    sequences: list[SequenceSummary]
+    overall_objectives: list[str]
+    overall: ModelResult | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (NaN left for the JSON writer to turn into null)."""
+        return {
+            "granularity": self.granularity,
+            "objective_measures": self.measures,
+            "sequences": [
+                {
+                    "sequence": s.sequence,
+                    "common_frames": s.common_frames,
+                    "counts": {m: vars(c) for m, c in s.counts.items()},
+                    "scores": {m: sc.to_dict() for m, sc in s.scores.items()},
+                    "objectives": s.objectives,
+                    "models": s.models.to_dict() if s.models else None,
+                }
+                for s in self.sequences
+            ],
+            "overall": {
+                "objectives": self.overall_objectives,
+                "models": self.overall.to_dict() if self.overall else None,
+            },
+        }
+
+
+def _criteria(scores: Scores) -> list[str]:
+    return [c for c in scores.criteria if c not in scores.overlapping]
+
+
+def _block(
+    scores: dict[str, Scores], methods: Sequence[str], measures: Sequence[str], label: str
+) -> tuple[list[str], np.ndarray]:
+    """Objective names and the methods × objectives block of one set of scores."""
+    criteria = _criteria(scores[methods[0]])
+    names = [f"{c}/{m}{label}" for c in criteria for m in measures]
+    block = np.array(
+        [[scores[method][c][m] for c in criteria for m in measures] for method in methods],
+        dtype=np.float64,
+    )
+    return names, block
+
+
+def _objectives(
+    store: ResultsStore,
+    sequence: str,
+    methods: Sequence[str],
+    measures: Sequence[str],
+    granularity: str,
+) -> tuple[list[str], np.ndarray, dict[str, Scores], int]:
+    stamps = store.common_stamps(sequence)
+    totals = store.sequence_scores(sequence, stamps=stamps) if stamps else {}
+    if not stamps:
+        return [], np.empty((len(methods), 0)), totals, 0
+    if granularity == "sequence":
+        names, block = _block(totals, methods, measures, f" @{sequence}")
+        return names, block, totals, len(stamps)
+    names, blocks = [], []
+    for stamp in stamps:
+        frame_names, block = _block(
+            store.frame_scores(sequence, stamp), methods, measures, f" @{sequence}:{stamp}"
+        )
+        names.extend(frame_names)
+        blocks.append(block)
+    return names, np.hstack(blocks), totals, len(stamps)
+
+
+def summarize(
+    store: ResultsStore,
+    measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES,
+    granularity: str = "sequence",
+) -> RunSummary:
+    """Models per sequence and overall, objectives per (criterion, sequence) or (criterion, frame)."""
+    if granularity not in GRANULARITIES:
+        raise ConfigurationError(
+            f"objectives must be one of {', '.join(GRANULARITIES)}, got '{granularity}'"
+        )
+    computed = store.measures()
+    unknown = [m for m in measures if computed and m not in computed]
+    if unknown:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(unknown)} were not computed; "
+            f"computed: {', '.join(computed)}"
+        )
+    methods = store.methods()
+    summaries = []
+    all_names: list[str] = []
+    all_blocks: list[np.ndarray] = []
+    for sequence in store.sequences():
+        names, block, totals, common = _objectives(store, sequence, methods, measures, granularity)
+        present = [m for m in methods if m in totals]
+        models = evaluate_models(present, block) if len(present) > 1 and names else None
+        summaries.append(
+            SequenceSummary(sequence, store.match_counts(sequence), totals, common, names, models)
+        )
+        if names:
+            all_names.extend(names)
+            all_blocks.append(block)
+    overall = None
+    if len(summaries) > 1 and all_blocks and len(methods) > 1:
+        overall = evaluate_models(methods, np.hstack(all_blocks))
+    return RunSummary(granularity, list(measures), summaries, all_names, overall)

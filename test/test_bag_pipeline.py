@@ -1,0 +1,401 @@
+"""``dispeval bag`` end to end on real bag files of every format, resume after a kill, bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dispeval_ros import Camera
+from dispeval_ros.cli.main import main
+from dispeval_ros.io import write_pfm
+from dispeval_ros.io.bags import BagSource, BagWriter
+from dispeval_ros.io.messages import (
+    camera_from_infos,
+    camera_info_to_msg,
+    disparity_from_msg,
+    disparity_to_msg,
+    image_from_msg,
+    image_to_msg,
+    stamp_ns,
+)
+from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.offline.make_bag import (
+    GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
+    START_NS,
+    disparity_topic,
+    synthetic_frames,
+    write_bag,
+)
+
+METHODS = ("bm_fast", "sgbm", "sgbm_3way")
+FORMATS = ("rosbag2-mcap", "rosbag2-sqlite3", "mcap", "ros1")
+
+
+def method_args() -> list[str]:
+    args: list[str] = []
+    for name in METHODS:
+        args += ["--method", f"{name}={disparity_topic(name)}"]
+    return args
+
+
+def bag_args(bag: Path, out: Path, *extra: str) -> list[str]:
+    return [
+        "bag",
+        str(bag),
+        "--gt",
+        GT_TOPIC,
+        *method_args(),
+        "--camera-info",
+        LEFT_INFO,
+        RIGHT_INFO,
+        "--out",
+        str(out),
+        "--quiet",
+        *extra,
+    ]
+
+
+@pytest.fixture(scope="module")
+def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same synthetic drive (6 frames, 256×96) in every bag format."""
+    root = tmp_path_factory.mktemp("bags")
+    frames = list(synthetic_frames(6, 256, 96, 10.0, seed=1))
+    paths = {
+        "rosbag2-mcap": root / "drive_mcap",
+        "rosbag2-sqlite3": root / "drive_sqlite",
+        "mcap": root / "drive.mcap",
+    }
+    for storage, path in paths.items():
+        write_bag(path, iter(frames), storage=storage)
+    from rosbags.convert import convert
+
+    paths["ros1"] = root / "drive.bag"
+    convert(
+        srcs=[paths["rosbag2-sqlite3"]],
+        dst=paths["ros1"],
+        dst_storage="sqlite3",
+        dst_version=8,
+        compress=None,
+        compress_mode="file",
+        default_typestore=None,
+        typestore=None,
+        exclude_topics=[],
+        include_topics=[],
+        exclude_msgtypes=[],
+        include_msgtypes=[],
+    )
+    return paths
+
+
+def read_frames(
+    bag: Path,
+) -> tuple[dict[int, np.ndarray], dict[tuple[str, int], np.ndarray], Camera]:
+    """GT and every method's disparity by stamp, straight from the bag."""
+    gts: dict[int, np.ndarray] = {}
+    estimates: dict[tuple[str, int], np.ndarray] = {}
+    infos = {}
+    topics = [GT_TOPIC, LEFT_INFO, RIGHT_INFO, *(disparity_topic(m) for m in METHODS)]
+    with BagSource(bag) as source:
+        for topic, _, msg in source.messages(topics):
+            if topic == GT_TOPIC:
+                gts[stamp_ns(msg.header)] = image_from_msg(msg).array
+            elif topic in (LEFT_INFO, RIGHT_INFO):
+                infos[topic] = msg
+            else:
+                estimates[topic.split("/")[2], stamp_ns(msg.header)] = disparity_from_msg(
+                    msg
+                ).disparity
+    return gts, estimates, camera_from_infos(infos[LEFT_INFO], infos[RIGHT_INFO])
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_bag_gives_exactly_the_scores_of_eval(
+    fmt: str, bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(bag_args(bags[fmt], tmp_path / "out")) == 0
+    capsys.readouterr()
+    gts, estimates, camera = read_frames(bags[fmt])
+    with ResultsStore.open(tmp_path / "out") as store:
+        (sequence,) = store.sequences()
+        assert store.stamps(sequence) == sorted(gts)
+        counts = store.match_counts(sequence)
+        assert {
+            m: (c.matched, c.unmatched, c.dropped, c.failed) for m, c in counts.items()
+        } == dict.fromkeys(METHODS, (6, 0, 0, 0))
+        for stamp in sorted(gts)[::2]:
+            write_pfm(tmp_path / "gt.pfm", gts[stamp])
+            from_bag = store.frame_scores(sequence, stamp)
+            for method in METHODS:
+                write_pfm(tmp_path / "est.pfm", estimates[method, stamp])
+                code = main(
+                    [
+                        "eval",
+                        "--gt",
+                        str(tmp_path / "gt.pfm"),
+                        "--est",
+                        str(tmp_path / "est.pfm"),
+                        "--focal",
+                        repr(camera.f),
+                        "--baseline",
+                        repr(camera.baseline),
+                        "--json",
+                    ]
+                )
+                assert code == 0
+                from_files = json.loads(capsys.readouterr().out)["frames"][0]["criteria"]
+                for criterion, values in from_files.items():
+                    for measure, value in values.items():
+                        stored = from_bag[method][criterion][measure]
+                        if value is None:
+                            assert np.isnan(stored), (method, criterion, measure)
+                        else:
+                            assert stored == value, (fmt, stamp, method, criterion, measure)
+
+
+def test_bag_summary_and_exports(
+    bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    assert main(bag_args(bags["rosbag2-mcap"], out, "--json")) == 0
+    document = json.loads(capsys.readouterr().out)
+    (sequence,) = document["sequences"]
+    assert sequence["common_frames"] == 6
+    assert set(sequence["models"]["groups"]) == set(METHODS)
+    assert sequence["models"]["interpretation"]
+    assert json.loads((out / "summary.json").read_text()) == document
+    header = (out / "frames.csv").read_text().splitlines()[0].split(",")
+    assert header[:5] == ["sequence", "stamp", "method", "criterion", "n"]
+    assert main(bag_args(bags["rosbag2-mcap"], out)) == 2  # results exist: refuse without --resume
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_jobs_give_the_same_database(
+    bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(bag_args(bags["rosbag2-sqlite3"], tmp_path / "one", "--slice", "0.2")) == 0
+    assert (
+        main(bag_args(bags["rosbag2-sqlite3"], tmp_path / "two", "--slice", "0.2", "--jobs", "2"))
+        == 0
+    )
+    capsys.readouterr()
+    assert database_content(tmp_path / "one") == database_content(tmp_path / "two")
+
+
+def database_content(folder: Path) -> tuple[list[tuple], ...]:
+    """Every table's rows in a canonical order (what 'the same database' means)."""
+    connection = sqlite3.connect(folder / "results.sqlite")
+    tables = [
+        row[0]
+        for row in connection.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name"
+        )
+    ]
+    content = tuple(
+        sorted(connection.execute(f'SELECT * FROM "{table}"').fetchall(), key=repr)
+        for table in tables
+    )
+    connection.close()
+    return content
+
+
+def test_killed_run_resumes_to_the_same_database(tmp_path: Path) -> None:
+    bag = tmp_path / "long"
+    write_bag(
+        bag,
+        synthetic_frames(24, 192, 64, 10.0, seed=2),
+        storage="rosbag2-sqlite3",
+    )
+    command = [
+        sys.executable,
+        "-m",
+        "dispeval_ros",
+        *bag_args(bag, tmp_path / "killed", "--slice", "0.1"),
+    ]
+    reference = [
+        sys.executable,
+        "-m",
+        "dispeval_ros",
+        *bag_args(bag, tmp_path / "whole", "--slice", "0.1"),
+    ]
+    subprocess.run(reference, check=True, capture_output=True)
+    rng = random.Random(7)
+    database = tmp_path / "killed" / "results.sqlite"
+    for _attempt in range(20):
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        while not database.exists() and process.poll() is None:
+            time.sleep(0.01)
+        time.sleep(rng.uniform(0.0, 0.6))
+        if process.poll() is None:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+            break
+        process.wait()  # finished before the kill: start over with a fresh folder
+        for file in (tmp_path / "killed").iterdir():
+            file.unlink()
+    else:
+        pytest.fail("the run always finished before it could be killed")
+    resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, check=False)
+    assert resumed.returncode == 0, resumed.stderr
+    assert database_content(tmp_path / "killed") == database_content(tmp_path / "whole")
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+
+def write_custom_bag(
+    path: Path, *, gt_encoding: str = "32FC1", method_width: int = 64, baseline: float = 0.5
+) -> None:
+    """A hand-made bag: 3 frames, one method, chosen defects."""
+    camera = Camera(f=100.0, baseline=1.0)
+    with BagWriter(path, "rosbag2-mcap") as bag:
+        typestore = bag.typestore
+        bag.add_topic(GT_TOPIC, "sensor_msgs/msg/Image")
+        bag.add_topic(LEFT_INFO, "sensor_msgs/msg/CameraInfo")
+        bag.add_topic(RIGHT_INFO, "sensor_msgs/msg/CameraInfo")
+        bag.add_topic("/m/disparity", "stereo_msgs/msg/DisparityImage")
+        for i in range(3):
+            stamp = START_NS + i * 100_000_000
+            gt = np.full((48, 64), 10.0, np.float32)
+            if gt_encoding == "rgb8":
+                gt_msg = image_to_msg(
+                    typestore, np.zeros((48, 64, 3), np.uint8), stamp, "l", "rgb8"
+                )
+            else:
+                gt_msg = image_to_msg(typestore, gt, stamp, "l", gt_encoding)
+            bag.write(
+                LEFT_INFO, stamp, camera_info_to_msg(typestore, camera, 64, 48, stamp, "l", False)
+            )
+            right = camera_info_to_msg(
+                typestore, Camera(f=100.0, baseline=1.0), 64, 48, stamp, "r", True
+            )
+            if baseline == 0.0:
+                right.p[3] = 0.0
+            bag.write(RIGHT_INFO, stamp, right)
+            bag.write(GT_TOPIC, stamp, gt_msg)
+            estimate = np.full((48, method_width), 10.5, np.float32)
+            bag.write(
+                "/m/disparity",
+                stamp + 1,
+                disparity_to_msg(typestore, estimate, stamp, "l", 100.0, 1.0, 0.0, 63.0),
+            )
+
+
+def run_custom(path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(
+        [
+            "bag",
+            str(path),
+            "--gt",
+            GT_TOPIC,
+            "--method",
+            "m=/m/disparity",
+            "--camera-info",
+            LEFT_INFO,
+            RIGHT_INFO,
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_missing_topic_lists_what_exists(
+    bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(
+        [
+            "bag",
+            str(bags["mcap"]),
+            "--gt",
+            "/nope",
+            "--method",
+            "x=/stereo/sgbm/disparity",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "/nope" in err
+    assert f"{GT_TOPIC} (sensor_msgs/msg/Image" in err
+    assert "stereo_msgs/msg/DisparityImage" in err
+
+
+@pytest.mark.parametrize(
+    ("defect", "expected"),
+    [
+        ({"method_width": 60}, "60"),
+        ({"gt_encoding": "rgb8"}, "rgb8"),
+        ({"baseline": 0.0}, "baseline"),
+    ],
+    ids=["size-mismatch", "unknown-encoding", "zero-baseline"],
+)
+def test_per_frame_problems_are_recorded_not_fatal(
+    defect: dict, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    write_custom_bag(tmp_path / "bag", **defect)
+    code, out, _ = run_custom(tmp_path / "bag", tmp_path / "out", capsys)
+    assert code == 0
+    assert "problem(s) recorded" in out
+    with ResultsStore.open(tmp_path / "out") as store:
+        problems = store.problems()
+        assert len(problems) == 3
+        assert all(expected in p.message and "\n" not in p.message for p in problems)
+        counts = store.match_counts(store.sequences()[0])["m"]
+        assert (counts.matched, counts.failed) == (0, 3)
+
+
+def test_good_custom_bag_scores(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    write_custom_bag(tmp_path / "bag")
+    code, _, _ = run_custom(tmp_path / "bag", tmp_path / "out", capsys)
+    assert code == 0
+    with ResultsStore.open(tmp_path / "out") as store:
+        sequence = store.sequences()[0]
+        scores = store.sequence_scores(sequence)["m"]
+        assert scores["all"]["mae"] == pytest.approx(0.5)
+        assert scores["all"]["n"] == 3 * 48 * 64
+        assert store.problems() == []
+
+
+@pytest.mark.parametrize("fmt", ["rosbag2-sqlite3", "mcap"])
+def test_truncated_bag_is_a_clear_error_and_keeps_results(
+    fmt: str, bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = bags[fmt]
+    damaged = tmp_path / "damaged"
+    if fmt == "mcap":
+        damaged = tmp_path / "damaged.mcap"
+        data = source.read_bytes()
+        damaged.write_bytes(data[: len(data) * 2 // 3])
+    else:
+        damaged.mkdir()
+        for file in source.iterdir():
+            data = file.read_bytes()
+            (damaged / file.name).write_bytes(
+                data if file.suffix == ".yaml" else data[: len(data) // 2]
+            )
+    code = main(bag_args(damaged, tmp_path / "out"))
+    captured = capsys.readouterr()
+    if code == 2:  # refused at opening: one line, naming the bag
+        assert captured.err.count("\n") == 1
+        assert "damaged" in captured.err
+    else:  # read up to the damage: what came before is scored, the damage is a recorded problem
+        assert code == 0
+        with ResultsStore.open(tmp_path / "out") as store:
+            assert any("reading stopped" in p.message for p in store.problems())
+            assert store.stamps(store.sequences()[0])
