@@ -112,8 +112,8 @@ def occlusion(
         right = np.where(np.isfinite(right), right, 0.0)
         mismatch = np.abs(safe - right) > 1.0
         return valid & (~inside | mismatch), "right-view GT"
-    gt64 = np.ascontiguousarray(gt, dtype=np.float64)
-    return kernels.forward_warp_occlusion(gt64, valid, float(tolerance)), "left GT z-buffer"
+    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
+    return kernels.forward_warp_occlusion(gt32, valid, float(tolerance)), "left GT z-buffer"
 
 
 def discontinuities(
@@ -123,14 +123,7 @@ def discontinuities(
 
     Only jumps between two valid points count, so the border of unknown GT is no boundary.
     """
-    d = np.where(valid, gt, 0.0).astype(np.float32)
-    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
-    horizontal = valid[:, 1:] & valid[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) > gap)
-    vertical = valid[1:, :] & valid[:-1, :] & (np.abs(d[1:, :] - d[:-1, :]) > gap)
-    jumps[:, 1:] |= horizontal
-    jumps[:, :-1] |= horizontal
-    jumps[1:, :] |= vertical
-    jumps[:-1, :] |= vertical
+    jumps = kernels.jump_mask(np.ascontiguousarray(gt, dtype=np.float32), valid, float(gap))
     if width > 1:
         jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
     return jumps.astype(bool)
@@ -202,7 +195,7 @@ def kmeans_thresholds(
     return _midpoints(centroids)
 
 
-_KMEANS_BINS = 1024
+_KMEANS_BINS = 512
 
 
 def _midpoints(centroids: np.ndarray) -> tuple[float, float]:
@@ -362,10 +355,10 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            cells += criterion_set.labels * np.int32(stride)
+            kernels.add_labels(cells, np.ascontiguousarray(criterion_set.labels), stride)
         stride *= criterion_set.classes
     n_cells = stride
-    cells[~valid] = NOT_EVALUATED
+    kernels.clear_invalid(cells, valid, NOT_EVALUATED)
     criteria: list[str] = []
     rows: list[np.ndarray] = []
     overlapping: list[str] = []

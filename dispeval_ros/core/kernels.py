@@ -45,15 +45,33 @@ def _code_row(row: np.ndarray, lo: float, hi: float, out: np.ndarray) -> int:  #
     return count
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _all_valid8(row: np.ndarray, x: int) -> bool:  # pragma: no cover - compiled
+    """Whether ``row[x:x+8]`` are all valid (one branch for eight values)."""
+    return (
+        (row[x] > 0.0)
+        & (row[x + 1] > 0.0)
+        & (row[x + 2] > 0.0)
+        & (row[x + 3] > 0.0)
+        & (row[x + 4] > 0.0)
+        & (row[x + 5] > 0.0)
+        & (row[x + 6] > 0.0)
+        & (row[x + 7] > 0.0)
+    )
+
+
 @njit(cache=True, nogil=True)
 def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
     """KITTI background interpolation of one coded row that has at least one valid value."""
     width = out.shape[0]
     x = 0
-    while x < width:
-        if out[x] > 0.0:
+    while True:
+        while x + 8 <= width and _all_valid8(out, x):  # skip a run of valid values
+            x += 8
+        while x < width and out[x] > 0.0:
             x += 1
-            continue
+        if x == width:
+            return
         gap_start = x
         while x < width and not out[x] > 0.0:
             x += 1
@@ -375,3 +393,41 @@ def histogram_moments(
             sums[b] += v
             squares[b] += v * v
     return counts, sums, squares
+
+
+@njit(cache=True, nogil=True)
+def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # pragma: no cover
+    """1 at both ends of every 4-neighbour GT jump larger than ``gap`` between valid points."""
+    height, width = gt.shape
+    jumps = np.zeros((height, width), dtype=np.uint8)
+    for y in range(height):
+        for x in range(width):
+            if not valid[y, x]:
+                continue
+            d = gt[y, x]
+            if x + 1 < width and valid[y, x + 1] and abs(d - gt[y, x + 1]) > gap:
+                jumps[y, x] = 1
+                jumps[y, x + 1] = 1
+            if y + 1 < height and valid[y + 1, x] and abs(d - gt[y + 1, x]) > gap:
+                jumps[y, x] = 1
+                jumps[y + 1, x] = 1
+    return jumps
+
+
+@njit(cache=True, nogil=True)
+def add_labels(cells: np.ndarray, labels: np.ndarray, stride: int) -> None:  # pragma: no cover
+    """``cells += labels · stride`` in place (one pass, no temporary)."""
+    flat_cells = cells.ravel()
+    flat_labels = labels.ravel()
+    for i in range(flat_cells.shape[0]):
+        flat_cells[i] += flat_labels[i] * stride
+
+
+@njit(cache=True, nogil=True)
+def clear_invalid(cells: np.ndarray, valid: np.ndarray, value: int) -> None:  # pragma: no cover
+    """``cells[~valid] = value`` in place."""
+    flat_cells = cells.ravel()
+    flat_valid = valid.ravel()
+    for i in range(flat_cells.shape[0]):
+        if not flat_valid[i]:
+            flat_cells[i] = value
