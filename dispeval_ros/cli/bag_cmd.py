@@ -11,6 +11,7 @@ from dispeval_ros.cli import common
 from dispeval_ros.cli.output import json_safe, print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
+from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.errors import ConfigurationError
 
 if TYPE_CHECKING:
@@ -120,6 +121,8 @@ def core_config(args: argparse.Namespace) -> CoreConfig:
     """The evaluation core's configuration from the options."""
     from dispeval_ros.live.core import CoreConfig
 
+    if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
+        args.measures = list(SEQUENCE_MEASURES)
     evaluator = common.evaluator_from_args(args)
     left, right = args.camera_info if args.camera_info else (None, None)
     return CoreConfig(

@@ -43,6 +43,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--height", type=int, default=188, help="synthetic image height (default 188)"
     )
     parser.add_argument("--seed", type=int, default=0, help="synthetic world seed (default 0)")
+    parser.add_argument(
+        "--compress",
+        action="store_true",
+        help="zstd-compress MCAP chunks (smaller, slower to read; rosbag2 records uncompressed by default)",
+    )
     parser.add_argument("--json", action="store_true", help="print what was written as JSON")
     parser.set_defaults(run=run)
 
@@ -65,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         frames,
         storage=args.storage,
         fps=args.fps,
+        compress=args.compress,
         progress=(lambda n: progress.update(n, total, n)) if total else None,
     )
     if args.json:

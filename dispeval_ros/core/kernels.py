@@ -237,11 +237,12 @@ def counting_order(
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     """Stable counting sort of pixel indices by cell (cell < 0: not evaluated)."""
     flat = cells.ravel()
-    counts = np.zeros(n_cells + 1, dtype=np.int64)
+    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: see histogram_moments
     for i in range(flat.shape[0]):
         c = flat[i]
         if c >= 0:
-            counts[c + 1] += 1
+            lanes[i & 3, c + 1] += 1
+    counts = lanes.sum(axis=0)
     for c in range(n_cells):
         counts[c + 1] += counts[c]
     offsets = counts.copy()
@@ -379,9 +380,11 @@ def histogram_moments(
     values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
     """Counts, sums and sums of squares of the valid values in ``bins`` equal bins."""
-    counts = np.zeros(bins, dtype=np.float64)
-    sums = np.zeros(bins, dtype=np.float64)
-    squares = np.zeros(bins, dtype=np.float64)
+    # Four interleaved histograms: neighbouring pixels usually fall in the same bin, and one
+    # histogram would chain every update on the previous one through memory.
+    counts = np.zeros((4, bins), dtype=np.float64)
+    sums = np.zeros((4, bins), dtype=np.float64)
+    squares = np.zeros((4, bins), dtype=np.float64)
     flat_values = values.ravel()
     flat_valid = valid.ravel()
     scale = bins / (hi - lo) if hi > lo else 0.0
@@ -389,10 +392,11 @@ def histogram_moments(
         if flat_valid[i]:
             v = np.float64(flat_values[i])
             b = min(int((v - lo) * scale), bins - 1)
-            counts[b] += 1.0
-            sums[b] += v
-            squares[b] += v * v
-    return counts, sums, squares
+            lane = i & 3
+            counts[lane, b] += 1.0
+            sums[lane, b] += v
+            squares[lane, b] += v * v
+    return counts.sum(axis=0), sums.sum(axis=0), squares.sum(axis=0)
 
 
 @njit(cache=True, nogil=True)

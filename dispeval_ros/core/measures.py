@@ -40,6 +40,8 @@ DEFAULT_MEASURES = (
     "a99",
     "density",
 )
+SEQUENCE_MEASURES = tuple(m for m in DEFAULT_MEASURES if not m.startswith("a"))
+"""Default for sequences and live streams: quantiles are neither summable over frames nor cheap."""
 SUM_MEASURES = ("sze", "bmpre", "bmp_count")
 HIGHER_IS_BETTER = ("density",)
 _SIMPLE = frozenset(

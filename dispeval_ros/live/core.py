@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dispeval_ros.core import Camera, Evaluator, Scores
+from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.messages import (
     camera_from_infos,
@@ -77,8 +78,9 @@ class CoreConfig:
         return expected
 
     def evaluator(self) -> Evaluator:
-        """The core evaluator these options describe."""
-        return Evaluator(self.criteria, self.measures, self.missing, self.delta, self.mu)
+        """The core evaluator these options describe (measures default to the summable ones)."""
+        measures = self.measures if self.measures is not None else SEQUENCE_MEASURES
+        return Evaluator(self.criteria, measures, self.missing, self.delta, self.mu)
 
 
 @dataclass

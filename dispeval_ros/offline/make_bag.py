@@ -87,12 +87,13 @@ def write_bag(
     storage: str = "rosbag2-mcap",
     methods: Sequence[StereoMethod] | None = None,
     fps: float = 10.0,
+    compress: bool = False,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, object]:
     """Write every frame (images, CameraInfo, GT, each method's disparity); returns a summary."""
     written = 0
     chosen: list[StereoMethod] | None = list(methods) if methods else None
-    with BagWriter(path, storage) as bag:
+    with BagWriter(path, storage, compress=compress) as bag:
         typestore = bag.typestore
         for topic, msgtype in (
             (LEFT_IMAGE, "sensor_msgs/msg/Image"),

@@ -45,5 +45,5 @@ def make_sample_bag(path: Path) -> Path:
     width, height = SAMPLE_SIZE
     methods = [m for m in default_methods(width) if m.name in SAMPLE_METHODS]
     frames = synthetic_frames(SAMPLE_FRAMES, width, height, SAMPLE_FPS, seed=0)
-    write_bag(path, frames, storage="rosbag2-mcap", methods=methods, fps=SAMPLE_FPS)
+    write_bag(path, frames, storage="rosbag2-mcap", methods=methods, fps=SAMPLE_FPS, compress=True)
     return path
