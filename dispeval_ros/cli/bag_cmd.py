@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.cli.output import json_safe, print_json
+from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.jsonio import write_json
 
 if TYPE_CHECKING:
     from dispeval_ros.live.core import CoreConfig
@@ -186,9 +186,7 @@ def run_command(args: argparse.Namespace) -> int:
         summary = summarize(store, args.objective_measures, args.objectives)
         problems = store.problems()
     document = summary.to_dict()
-    (args.out / "summary.json").write_text(
-        json.dumps(json_safe(document), indent=2, allow_nan=False) + "\n"
-    )
+    write_json(args.out / "summary.json", document)
     if args.json:
         print_json(document)
         return 0

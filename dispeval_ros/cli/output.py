@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import json
 import math
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, TextIO
+
+from dispeval_ros.io.jsonio import dumps, json_safe  # noqa: F401 (json_safe re-exported)
 
 
 def format_number(value: float) -> str:
@@ -42,20 +43,6 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines)
 
 
-def json_safe(value: Any) -> Any:
-    """Recursively replace NaN/inf floats (not valid JSON) with None; numpy scalars to Python."""
-    if isinstance(value, Mapping):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def print_json(document: Any, stream: TextIO | None = None) -> None:
     """Strict JSON (``null`` for undefined numbers), floats written so they read back exactly."""
-    json.dump(json_safe(document), stream or sys.stdout, indent=2, allow_nan=False)
-    (stream or sys.stdout).write("\n")
+    (stream or sys.stdout).write(dumps(document) + "\n")

@@ -367,6 +367,20 @@ class Evaluator:
         kernels.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
         return buffer
 
+    def error_map(
+        self, reference: Reference, est: np.ndarray, est_range: tuple[float, float] | None = None
+    ) -> np.ndarray:
+        """Absolute error per pixel as scored (after the missing policy); NaN where not evaluated.
+
+        For display (error images), not for scoring: it allocates a full-size image.
+        """
+        work = self.normalise(as_disparity(est, "the estimate"), est_range)
+        error = np.abs(np.abs(work) - reference.gt)
+        error[reference.partition.cells < 0] = np.nan
+        if self.missing == "ignore":
+            error[work <= 0] = np.nan
+        return error
+
     def _buffer(self, name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
         """A per-thread scratch array, reallocated only when the shape changes."""
         buffer = getattr(self._local, name, None)

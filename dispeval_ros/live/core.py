@@ -12,7 +12,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from dispeval_ros.core import Camera, Evaluator, Scores
+import numpy as np
+
+from dispeval_ros.core import Camera, Evaluator, Partition, Scores
 from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.messages import (
@@ -91,6 +93,10 @@ class FrameResult:
     scores: dict[str, Scores]
     estimate_stamps: dict[str, int]
     problems: list[tuple[str | None, str]] = field(default_factory=list)
+    errors: dict[str, np.ndarray] = field(default_factory=dict)
+    """With ``error_images``: per method, the absolute error (float32, NaN where not evaluated)."""
+    partition: Partition | None = None
+    """The criteria of this frame's ground truth (to render error images with criteria)."""
 
 
 @dataclass
@@ -106,8 +112,11 @@ class MethodCounts:
 class EvaluationCore:
     """Join, score and report; call :meth:`push` for every message, :meth:`flush` at the end."""
 
-    def __init__(self, config: CoreConfig, *, keep_events: bool = False) -> None:
+    def __init__(
+        self, config: CoreConfig, *, keep_events: bool = False, error_images: bool = False
+    ) -> None:
         self.config = config
+        self.error_images = error_images
         self.evaluator = config.evaluator()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
             list(config.methods), config.tolerance_ns, config.lateness_ns, keep_events
@@ -174,6 +183,11 @@ class EvaluationCore:
                     reference, frame.disparity, est_range=frame.est_range
                 )
                 result.estimate_stamps[method] = stamp
+                if self.error_images:
+                    result.errors[method] = self.evaluator.error_map(
+                        reference, frame.disparity, frame.est_range
+                    )
+                    result.partition = reference.partition
             except DispevalError as error:
                 self.failed[method] += 1
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))

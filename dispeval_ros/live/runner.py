@@ -1,0 +1,138 @@
+"""Live evaluation: the evaluation core behind a bounded queue and one scoring thread.
+
+Transport callbacks call :meth:`LiveEvaluator.push`, which only joins by stamp (microseconds)
+and never blocks: joined frames wait in a bounded queue, and when scoring cannot keep up the
+oldest waiting frame is dropped and counted for every method in it. A worker thread scores
+and hands each :class:`~dispeval_ros.live.core.FrameResult` to the front end's callback.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from dispeval_ros.live.core import CoreConfig, EvaluationCore, FrameResult, MethodCounts
+from dispeval_ros.live.join import FrameSet
+
+
+@dataclass
+class LiveStats:
+    """Counters and latencies (seconds, from the frame's last message to its result)."""
+
+    queue_drops: int = 0
+    results: int = 0
+    latencies: list[float] = field(default_factory=list)
+
+
+class LiveEvaluator:
+    """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams."""
+
+    def __init__(
+        self,
+        config: CoreConfig,
+        on_result: Callable[[FrameResult], None],
+        *,
+        queue_size: int = 4,
+        max_buffered: int = 256,
+        error_images: bool = False,
+        keep_latencies: int = 100_000,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.core = EvaluationCore(config, error_images=error_images)
+        self.on_result = on_result
+        self.queue_size = max(1, queue_size)
+        self.max_buffered = max_buffered
+        self.stats = LiveStats()
+        self._keep_latencies = keep_latencies
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._ready = threading.Condition(self._lock)
+        self._queue: deque[tuple[FrameSet[Any, Any], float]] = deque()
+        self._dropped: dict[str, int] = dict.fromkeys(config.methods, 0)
+        self._stopping = False
+        self._busy = False
+        self._worker = threading.Thread(target=self._run, name="dispeval-scoring", daemon=True)
+        self._worker.start()
+
+    # -- transport side ---------------------------------------------------------------------
+
+    def push(self, topic: str, msg: Any) -> None:
+        """Take one message (from any thread); never blocks on scoring."""
+        arrived = self._clock()
+        with self._lock:
+            if self._stopping:
+                return
+            ready = self.core.push(topic, msg)
+            while self.core.joiner.buffered > self.max_buffered:
+                if self.core.joiner.drop_oldest() is None:
+                    break
+            for frame_set in ready:
+                self._enqueue(frame_set, arrived)
+
+    def _enqueue(self, frame_set: FrameSet[Any, Any], arrived: float) -> None:
+        if len(self._queue) >= self.queue_size:
+            oldest, _ = self._queue.popleft()
+            self.stats.queue_drops += 1
+            for method in oldest.estimates:
+                self._dropped[method] += 1
+        self._queue.append((frame_set, arrived))
+        self._ready.notify()
+
+    # -- scoring side -----------------------------------------------------------------------
+
+    def _run(self) -> None:
+        while True:
+            with self._lock:
+                while not self._queue and not self._stopping:
+                    self._ready.wait()
+                if not self._queue and self._stopping:
+                    return
+                frame_set, arrived = self._queue.popleft()
+                self._busy = True
+            try:
+                result = self.core.score(frame_set)
+                self.on_result(result)
+            finally:
+                with self._lock:
+                    self._busy = False
+                    self.stats.results += 1
+                    if len(self.stats.latencies) < self._keep_latencies:
+                        self.stats.latencies.append(self._clock() - arrived)
+                    self._ready.notify_all()
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Block until every queued frame is scored (for tests and orderly shutdown)."""
+        deadline = None if timeout is None else self._clock() + timeout
+        with self._lock:
+            while self._queue or self._busy:
+                remaining = None if deadline is None else deadline - self._clock()
+                if remaining is not None and remaining <= 0:
+                    return False
+                self._ready.wait(remaining)
+        return True
+
+    def stop(self, flush: bool = True, timeout: float | None = None) -> None:
+        """Stop taking messages; with ``flush``, join and score everything still waiting."""
+        with self._lock:
+            if flush:
+                now = self._clock()
+                for frame_set in self.core.flush():
+                    self._queue.append((frame_set, now))
+            else:
+                self._queue.clear()
+            self._stopping = True
+            self._ready.notify_all()
+        self._worker.join(timeout)
+
+    def counts(self) -> dict[str, MethodCounts]:
+        """Per method: matched (scored), unmatched, dropped (incl. queue drops), failed."""
+        with self._lock:
+            counts = self.core.counts()
+            for method, dropped in self._dropped.items():
+                counts[method].matched -= dropped
+                counts[method].dropped += dropped
+            return counts

@@ -1,0 +1,140 @@
+"""The summarizer's transport-free core: accumulate score vectors per sequence, group methods.
+
+Frames are written to the same results database as ``dispeval bag`` in units of ``every_n``
+frames as they come (a crash loses at most one unit), and A* Groups with the front reduction
+are recomputed after every unit; :meth:`SummarizerCore.finish` writes the last frames, the CSV
+and ``summary.json``. Nothing accumulated is lost on an orderly shutdown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dispeval_ros.core import Scores
+from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.jsonio import write_json
+from dispeval_ros.io.store import FrameScores, MatchCounts, ResultsStore
+from dispeval_ros.live.vectors import OK, StatusRecord, format_number
+from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, RunSummary, summarize
+
+
+@dataclass(frozen=True)
+class SummarizerConfig:
+    """Where results go and how methods are compared."""
+
+    out: Path
+    objective_measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES
+    granularity: str = "sequence"
+    every_n: int = 10
+    resume: bool = False
+
+    def __post_init__(self) -> None:
+        if self.every_n < 1:
+            raise ConfigurationError(
+                f"the summary period must be at least 1 frame, got {self.every_n}"
+            )
+
+
+class SummarizerCore:
+    """Accumulate frames (method → Scores per stamp) into sequences; summarise periodically."""
+
+    def __init__(self, config: SummarizerConfig, run_config: Mapping[str, object]) -> None:
+        self.config = config
+        self.store = ResultsStore.create(config.out, run_config, resume=config.resume)
+        existing = self.store.sequences()
+        self._sequence_index = len(existing)
+        self.sequence = self._name(self._sequence_index)
+        self._pending: list[FrameScores] = []
+        self._units = len(self.store.done_units(self.sequence))
+        self.summary: RunSummary | None = None
+        self.frames = 0
+        self._finished = False
+
+    @staticmethod
+    def _name(index: int) -> str:
+        return f"sequence_{index:03d}"
+
+    def add(self, stamp: int, scores: Mapping[str, Scores]) -> RunSummary | None:
+        """One frame's scores; returns a fresh summary when a unit was just written."""
+        for method, method_scores in scores.items():
+            self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
+        self.frames += 1
+        if len({f.stamp for f in self._pending}) >= self.config.every_n:
+            return self._write_unit()
+        return None
+
+    def _write_unit(self) -> RunSummary | None:
+        if not self._pending:
+            return self.summary
+        counts: dict[str, MatchCounts] = {}
+        for frame in self._pending:
+            previous = counts.get(frame.method, MatchCounts(0, 0, 0, 0))
+            counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
+        unit = f"{self._units:06d}"
+        self.store.add_unit(self.sequence, unit, self._pending, (), counts)
+        self._units += 1
+        self._pending = []
+        self.summary = summarize(
+            self.store, self.config.objective_measures, self.config.granularity
+        )
+        return self.summary
+
+    def new_sequence(self) -> str:
+        """Close the current sequence (writing what it holds) and start the next one."""
+        self._write_unit()
+        self._sequence_index += 1
+        self.sequence = self._name(self._sequence_index)
+        self._units = 0
+        return self.sequence
+
+    def finish(self) -> RunSummary | None:
+        """Write everything accumulated, the CSV and ``summary.json``; close the database."""
+        if self._finished:
+            return self.summary
+        self._finished = True
+        try:
+            self._write_unit()
+            if self.store.sequences():
+                self.store.export_csv(self.config.out / "frames.csv")
+                summary = summarize(
+                    self.store, self.config.objective_measures, self.config.granularity
+                )
+                self.summary = summary
+                write_json(self.config.out / "summary.json", summary.to_dict())
+        finally:
+            self.store.close()
+        return self.summary
+
+
+def group_statuses(summary: RunSummary, sequence: str | None = None) -> list[StatusRecord]:
+    """One status per method: its A* group, u1/u2 (group 1), reduced flag, interpretation."""
+    chosen = next((s for s in summary.sequences if s.sequence == sequence), None)
+    if chosen is None and summary.sequences:
+        chosen = summary.sequences[-1]
+    models = (
+        summary.overall
+        if sequence is None and summary.overall is not None
+        else (chosen.models if chosen is not None else None)
+    )
+    if models is None:
+        return []
+    scope = "all sequences" if models is summary.overall else (chosen.sequence if chosen else "")
+    records = []
+    for method in models.methods:
+        reduction = models.reduction.get(method, {})
+        values = [
+            ("scope", scope),
+            ("group", str(models.groups[method])),
+            ("u1", format_number(reduction.get("u1", float("nan")))),
+            ("u2", format_number(reduction.get("u2", float("nan")))),
+            ("reduced", "true" if method in models.reduced else "false"),
+            ("average_rank", format_number(models.middlebury[method])),
+            ("interpretation", models.interpretation),
+        ]
+        message = f"A* group {models.groups[method]}" + (
+            " (reduced set)" if method in models.reduced else ""
+        )
+        records.append(StatusRecord(method, "dispeval/groups", OK, message, tuple(values)))
+    return records

@@ -1,0 +1,174 @@
+"""Score vectors as transport-free records: diagnostics statuses and fixed-order number vectors.
+
+A ROS or DDS front end turns a :class:`StatusRecord` into a ``diagnostic_msgs/DiagnosticStatus``
+and a vector into a ``std_msgs/Float64MultiArray`` without knowing anything about scoring.
+Numbers are written with ``repr`` so they read back exactly; each criterion also carries its
+raw accumulator row (``criterion/sums``) so a summarizer rebuilds the exact :class:`Scores`
+(sequence totals are sums of sums, never averages of means).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dispeval_ros.core import Scores
+from dispeval_ros.core.measures import SUM_FIELDS
+from dispeval_ros.errors import ConfigurationError, InputError
+
+OK, WARN, ERROR = 0, 1, 2
+SUMS_KEY = "sums"
+META_KEYS = ("_policy", "_relative", "_thresholds", "_overlapping", "_estimate_stamp")
+
+
+@dataclass(frozen=True)
+class AlarmThresholds:
+    """Alarm levels on ``criterion/measure`` values: above ``warn`` → WARN, above ``error`` → ERROR.
+
+    For density (higher is better) the comparison is reversed: below ``warn`` → WARN.
+    """
+
+    warn: Mapping[str, float] = field(default_factory=dict)
+    error: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def parse(cls, warn: Sequence[str], error: Sequence[str]) -> AlarmThresholds:
+        """From ``criterion/measure=value`` strings (as ROS string-array parameters)."""
+        return cls(_parse_limits(warn, "warn"), _parse_limits(error, "error"))
+
+    def level(self, key: str, value: float) -> int:
+        """The alarm level of one ``criterion/measure`` value (NaN never alarms)."""
+        if math.isnan(value):
+            return OK
+        lower_is_bad = key.endswith("/density")
+        for level, limits in ((ERROR, self.error), (WARN, self.warn)):
+            limit = limits.get(key)
+            if limit is not None and (value < limit if lower_is_bad else value > limit):
+                return level
+        return OK
+
+
+def _parse_limits(items: Sequence[str], what: str) -> dict[str, float]:
+    limits = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or "/" not in key:
+                raise ValueError(item)
+            limits[key.strip()] = float(value)
+        except ValueError:
+            raise ConfigurationError(
+                f"alarm {what} threshold '{item}' is not CRITERION/MEASURE=NUMBER (e.g. all/bmp=20)"
+            ) from None
+    return limits
+
+
+@dataclass(frozen=True)
+class StatusRecord:
+    """One diagnostic status: a method's scores on one frame (or a model result)."""
+
+    name: str
+    hardware_id: str
+    level: int
+    message: str
+    values: tuple[tuple[str, str], ...]
+
+
+def format_number(value: float) -> str:
+    """Shortest text that reads back to exactly the same float (``nan``, ``inf`` as such)."""
+    return repr(float(value))
+
+
+def scores_status(
+    method: str,
+    topic: str,
+    scores: Scores,
+    alarms: AlarmThresholds | None = None,
+    estimate_stamp: int | None = None,
+) -> StatusRecord:
+    """The status of one method on one frame: every ``criterion/measure`` plus raw sums."""
+    values: list[tuple[str, str]] = []
+    level = OK
+    worst = ""
+    for criterion in scores.criteria:
+        table = scores[criterion]
+        for measure, value in table.items():
+            key = f"{criterion}/{measure}"
+            values.append((key, format_number(value)))
+            if alarms is not None:
+                found = alarms.level(key, value)
+                if found > level:
+                    level, worst = found, f"{key} = {value:.4g}"
+        row = scores.sums[scores.criteria.index(criterion)]
+        values.append((f"{criterion}/{SUMS_KEY}", " ".join(format_number(v) for v in row)))
+    values.append(("_policy", scores.policy))
+    values.append(("_relative", "1" if scores.relative else "0"))
+    values.append(("_thresholds", " ".join(format_number(t) for t in scores.thresholds)))
+    values.append(("_overlapping", " ".join(scores.overlapping)))
+    if estimate_stamp is not None:
+        values.append(("_estimate_stamp", str(int(estimate_stamp))))
+    message = {OK: "ok", WARN: f"warning: {worst}", ERROR: f"error: {worst}"}[level]
+    return StatusRecord(method, topic, level, message, tuple(values))
+
+
+def scores_from_status(
+    values: Sequence[tuple[str, str]], measures: Sequence[str] | None = None
+) -> Scores:
+    """Rebuild the exact :class:`Scores` of a status written by :func:`scores_status`."""
+    table = dict(values)
+    criteria = [key[: -len(SUMS_KEY) - 1] for key, _ in values if key.endswith("/" + SUMS_KEY)]
+    if not criteria or "_thresholds" not in table:
+        raise InputError(
+            "the diagnostic status carries no dispeval sums (is it from a dispeval evaluator?)"
+        )
+    sums = np.array([[float(v) for v in table[f"{c}/{SUMS_KEY}"].split()] for c in criteria])
+    if sums.shape[1] != len(SUM_FIELDS):
+        raise InputError(
+            f"the diagnostic sums have {sums.shape[1]} fields, expected {len(SUM_FIELDS)}"
+        )
+    if measures is None:
+        prefix = criteria[0] + "/"
+        measures = [
+            key[len(prefix) :]
+            for key, _ in values
+            if key.startswith(prefix) and key[len(prefix) :] not in ("n", SUMS_KEY)
+        ]
+    return Scores(
+        criteria=tuple(criteria),
+        measures=tuple(measures),
+        sums=sums,
+        thresholds=np.array([float(t) for t in table["_thresholds"].split()]),
+        quantiles={
+            c: {
+                m: float(table[f"{c}/{m}"])
+                for m in measures
+                if m.startswith("a") and f"{c}/{m}" in table
+            }
+            for c in criteria
+        },
+        relative=table.get("_relative") == "1",
+        overlapping=tuple(table.get("_overlapping", "").split()),
+        policy=table.get("_policy", "interpolate"),
+    )
+
+
+def vector_labels(criteria: Sequence[str], measures: Sequence[str]) -> list[str]:
+    """The fixed order of a score vector: per criterion ``n``, ``density``, then each measure."""
+    labels = []
+    for criterion in criteria:
+        labels.append(f"{criterion}/n")
+        labels.append(f"{criterion}/density")
+        labels.extend(f"{criterion}/{m}" for m in measures if m != "density")
+    return labels
+
+
+def score_vector(scores: Scores, labels: Sequence[str]) -> list[float]:
+    """The numbers of ``labels`` in order (NaN where undefined)."""
+    vector = []
+    for label in labels:
+        criterion, _, measure = label.rpartition("/")
+        vector.append(float(scores[criterion][measure]))
+    return vector
