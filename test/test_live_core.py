@@ -1,0 +1,286 @@
+"""The transport-free live core, fed the sample bag's messages as a robot would deliver them."""
+
+from __future__ import annotations
+
+import dataclasses
+import random
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dispeval_ros.cli.main import main
+from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.live.core import CoreConfig, FrameResult
+from dispeval_ros.live.images import colour_error
+from dispeval_ros.live.replay import replay
+from dispeval_ros.live.runner import LiveEvaluator
+from dispeval_ros.live.summarizer import SummarizerConfig, SummarizerCore, group_statuses
+from dispeval_ros.live.vectors import (
+    ERROR,
+    OK,
+    WARN,
+    AlarmThresholds,
+    score_vector,
+    scores_from_status,
+    scores_status,
+    vector_labels,
+)
+from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
+from dispeval_ros.offline.sample import find_sample_bag
+
+MS = 1_000_000
+
+
+@pytest.fixture(scope="module")
+def sample() -> Path:
+    bag = find_sample_bag()
+    assert bag is not None, "bags/sample_drive is part of the repository"
+    return bag
+
+
+def sample_config(bag: Path) -> CoreConfig:
+    with BagSource(bag) as source:
+        methods = {
+            t.split("/")[2]: t
+            for t, i in source.topics.items()
+            if i.msgtype == "stereo_msgs/msg/DisparityImage"
+        }
+    return CoreConfig(
+        methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO
+    )
+
+
+@pytest.fixture(scope="module")
+def reference_run(
+    sample: Path, tmp_path_factory: pytest.TempPathFactory
+) -> dict[tuple[int, str], Any]:
+    """What ``dispeval bag`` stores for the sample bag: (GT stamp, method) → Scores."""
+    config = sample_config(sample)
+    out = tmp_path_factory.mktemp("bag") / "out"
+    args = [
+        "bag",
+        str(sample),
+        "--gt",
+        GT_TOPIC,
+        "--camera-info",
+        LEFT_INFO,
+        RIGHT_INFO,
+        "--out",
+        str(out),
+        "--quiet",
+    ]
+    for name, topic in config.methods.items():
+        args += ["--method", f"{name}={topic}"]
+    assert main(args) == 0
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        return {
+            (stamp, method): scores
+            for stamp in store.stamps(sequence)
+            for method, scores in store.frame_scores(sequence, stamp).items()
+        }
+
+
+def restamped(msg: Any, delta: int) -> Any:
+    """A copy of a message whose header stamp moved by ``delta`` ns (real rosbags objects)."""
+    stamp = stamp_ns(msg.header) + delta
+    header = dataclasses.replace(
+        msg.header,
+        stamp=dataclasses.replace(msg.header.stamp, sec=stamp // 10**9, nanosec=stamp % 10**9),
+    )
+    return dataclasses.replace(msg, header=header)
+
+
+def robot_stream(
+    bag: Path, config: CoreConfig, seed: int = 3
+) -> tuple[list[tuple[str, Any]], dict[str, Any]]:
+    """The bag's messages with stamp jitter, a few dropped frames and a little reordering."""
+    rng = random.Random(seed)
+    with BagSource(bag) as source:
+        messages = [(topic, msg) for topic, _, msg in source.messages(list(config.topics))]
+    gt_stamps = sorted(stamp_ns(m.header) for t, m in messages if t == GT_TOPIC)
+    methods = list(config.methods)
+    dropped_gt = {gt_stamps[5], gt_stamps[17]}
+    dropped_estimates = {
+        (methods[0], gt_stamps[3]),
+        (methods[1], gt_stamps[3]),
+        (methods[-1], gt_stamps[11]),
+    }
+    stream = []
+    for topic, original in messages:
+        msg = original
+        stamp = stamp_ns(msg.header)
+        if topic == GT_TOPIC and stamp in dropped_gt:
+            continue
+        method = next((m for m, t in config.methods.items() if t == topic), None)
+        if method is not None:
+            if (method, stamp) in dropped_estimates:
+                continue
+            if method == methods[1]:  # a driver with a jittery clock: ±4 ms (tolerance 10 ms)
+                msg = restamped(msg, rng.randint(-4, 4) * MS)
+        stream.append((topic, msg))
+    for i in range(0, len(stream) - 1, 7):  # transport reordering between topics
+        stream[i], stream[i + 1] = stream[i + 1], stream[i]
+    expected = {
+        "dropped_gt": dropped_gt,
+        "dropped_estimates": dropped_estimates,
+        "gt_stamps": gt_stamps,
+    }
+    return stream, expected
+
+
+def test_node_core_matches_dispeval_bag_with_jitter_and_drops(
+    sample: Path, reference_run: dict[tuple[int, str], Any]
+) -> None:
+    config = sample_config(sample)
+    stream, expected = robot_stream(sample, config)
+    results: list[FrameResult] = []
+    lock = threading.Lock()
+
+    def collect(result: FrameResult) -> None:
+        with lock:
+            results.append(result)
+
+    live = LiveEvaluator(config, collect, queue_size=1000)
+    for topic, msg in stream:
+        live.push(topic, msg)
+    live.stop(flush=True)
+
+    scored = {(r.stamp, m): s for r in results for m, s in r.scores.items()}
+    for key, scores in scored.items():
+        np.testing.assert_array_equal(scores.sums, reference_run[key].sums, err_msg=str(key))
+    methods = list(config.methods)
+    n_gt = len(expected["gt_stamps"])
+    counts = live.counts()
+    for method in methods:
+        own_drops = sum(1 for m, _ in expected["dropped_estimates"] if m == method)
+        assert counts[method].dropped == own_drops, method
+        # its estimates of the two dropped GT frames have nothing to pair with
+        assert counts[method].unmatched == len(expected["dropped_gt"]), method
+        assert counts[method].matched == n_gt - len(expected["dropped_gt"]) - own_drops, method
+        assert counts[method].failed == 0
+    assert len(scored) == sum(c.matched for c in counts.values())
+    assert live.stats.queue_drops == 0
+
+
+def test_bounded_queue_drops_oldest_and_counts(sample: Path) -> None:
+    config = sample_config(sample)
+    release = threading.Event()
+    seen: list[int] = []
+
+    def slow(result: FrameResult) -> None:
+        release.wait(10)
+        seen.append(result.stamp)
+
+    live = LiveEvaluator(config, slow, queue_size=2)
+    with BagSource(sample) as source:
+        for topic, _, msg in source.messages(list(config.topics)):
+            live.push(topic, msg)  # never blocks although scoring is stuck
+    release.set()
+    live.stop(flush=True)
+    counts = live.counts()
+    assert live.stats.queue_drops > 0
+    total = len(seen) + live.stats.queue_drops
+    assert all(c.matched + c.dropped == total for c in counts.values())
+    assert seen == sorted(seen)
+
+
+def test_statuses_round_trip_exactly_and_raise_alarms(
+    reference_run: dict[tuple[int, str], Any],
+) -> None:
+    (stamp, method), scores = next(iter(reference_run.items()))
+    alarms = AlarmThresholds.parse(["all/bmp=0.0"], ["all/density=1.01"])
+    status = scores_status(method, "/topic", scores, alarms, estimate_stamp=stamp)
+    assert status.level == ERROR  # density is always below 1.01
+    assert status.name == method
+    rebuilt = scores_from_status(status.values)
+    np.testing.assert_array_equal(rebuilt.sums, scores.sums)
+    for criterion in scores.criteria:
+        for measure, value in scores[criterion].items():
+            assert rebuilt[criterion][measure] == pytest.approx(value, nan_ok=True, rel=0, abs=0)
+    assert (
+        scores_status(method, "/t", scores, AlarmThresholds.parse(["all/bmp=0"], [])).level == WARN
+    )
+    assert scores_status(method, "/t", scores).level == OK
+    labels = vector_labels(scores.criteria, scores.measures)
+    vector = score_vector(scores, labels)
+    assert len(vector) == len(labels)
+    assert labels[:2] == [f"{scores.criteria[0]}/n", f"{scores.criteria[0]}/density"]
+    assert vector[0] == scores[scores.criteria[0]]["n"]
+
+
+def test_summarizer_writes_the_bag_database_and_groups(
+    reference_run: dict[tuple[int, str], Any], tmp_path: Path
+) -> None:
+    stamps = sorted({stamp for stamp, _ in reference_run})
+    methods = sorted({method for _, method in reference_run})
+    core = SummarizerCore(SummarizerConfig(tmp_path / "out", every_n=10), {"source": "test"})
+    summaries = []
+    for stamp in stamps:
+        frame = {
+            m: scores_from_status(scores_status(m, "/t", reference_run[stamp, m]).values)
+            for m in methods
+        }
+        result = core.add(stamp, frame)
+        if result is not None:
+            summaries.append(result)
+    assert len(summaries) == len(stamps) // 10
+    final = core.finish()
+    assert final is not None
+    records = group_statuses(final, core.sequence)
+    assert {r.name for r in records} == set(methods)
+    assert all(dict(r.values)["interpretation"] for r in records)
+    with ResultsStore.open(tmp_path / "out") as store:
+        (sequence,) = store.sequences()
+        assert store.stamps(sequence) == stamps
+        totals = store.sequence_scores(sequence)
+    for method in methods:
+        expected = np.sum([reference_run[s, method].sums for s in stamps], axis=0)
+        np.testing.assert_allclose(totals[method].sums, expected, rtol=1e-12)
+    assert (tmp_path / "out" / "summary.json").is_file()
+    assert (tmp_path / "out" / "frames.csv").is_file()
+
+
+def test_error_images_and_replay(sample: Path) -> None:
+    config = sample_config(sample)
+    results: list[FrameResult] = []
+    live = LiveEvaluator(config, results.append, queue_size=100, error_images=True)
+    pushed = replay(sample, list(config.topics), live.push, rate=None)
+    live.stop(flush=True)
+    assert pushed > 0
+    result = results[0]
+    method = next(iter(result.errors))
+    error = result.errors[method]
+    assert error.dtype == np.float32
+    assert result.partition is not None
+    assert np.isnan(error[result.partition.cells < 0]).all()
+    rgb = colour_error(error, result.partition)
+    assert rgb.dtype == np.uint8
+    assert rgb.shape == (*error.shape, 3)
+
+
+def test_replay_keeps_the_recorded_rate(sample: Path) -> None:
+    """At rate 2 the pushes follow the log times at half the spacing (a fake clock, no sleeping)."""
+    now = [0.0]
+    slept: list[float] = []
+
+    def sleep(seconds: float) -> None:
+        slept.append(seconds)
+        now[0] += seconds
+
+    pushed: list[str] = []
+    count = replay(
+        sample,
+        [GT_TOPIC],
+        lambda t, m: pushed.append(t),
+        rate=2.0,
+        clock=lambda: now[0],
+        sleep=sleep,
+    )
+    assert count == len(pushed) == 25
+    assert now[0] == pytest.approx(2.4 / 2.0, rel=1e-6)  # 25 frames at 10 Hz span 2.4 s
