@@ -24,6 +24,10 @@ def requirements() -> list[str]:
     return required
 
 
+DDS = ["cyclonedds>=0.10.5"]
+REPORT = ["matplotlib>=3.5"]
+TEST = ["pytest>=7", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT]
+
 setup(
     name=PACKAGE,
     version="0.1.0",
@@ -39,8 +43,10 @@ setup(
     python_requires=">=3.10",
     install_requires=requirements(),
     extras_require={
-        "test": ["pytest>=7", "hypothesis>=6", "pillow>=9"],
-        "dev": ["pytest>=7", "hypothesis>=6", "pillow>=9", "ruff>=0.5", "mypy>=1.8"],
+        "dds": DDS,
+        "report": REPORT,
+        "test": TEST,
+        "dev": [*TEST, "ruff>=0.5", "mypy>=1.8"],
     },
     zip_safe=True,
     maintainer="dispeval_ros developers",

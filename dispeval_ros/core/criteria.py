@@ -282,28 +282,11 @@ def roi_set(
     return _partitioning("roi", labels, criteria, "label image")
 
 
-def legacy_set(
-    gt: np.ndarray,
-    valid: np.ndarray,
-    *,
-    nonocc: np.ndarray | None = None,
-    disc: np.ndarray | None = None,
-    gt_right: np.ndarray | None = None,
-    gap: float = 2.0,
-    width: int = 9,
-    tolerance: float = 1.0,
-) -> CriterionSet:
-    """The overlapping Middlebury criteria ``nonocc`` ⊂ ``all`` ⊃ ``disc`` (for comparison only)."""
-    visibility = visibility_set(
-        gt,
-        valid,
-        nonocc=nonocc,
-        disc=disc,
-        gt_right=gt_right,
-        gap=gap,
-        width=width,
-        tolerance=tolerance,
-    )
+def legacy_set(visibility: CriterionSet) -> CriterionSet:
+    """The overlapping Middlebury criteria ``nonocc`` ⊂ ``all`` ⊃ ``disc`` (for comparison only).
+
+    Built on the visibility classes: occluded, boundary (= disc), interior.
+    """
     # classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
     membership = np.array([[False, True, True], [True, True, True], [False, True, False]])
     return CriterionSet(

@@ -205,10 +205,12 @@ class Evaluator:
                 "the ground truth has no valid point (every value is NaN, inf or ≤ 0"
                 + (" inside the 'all' mask)" if "all" in bool_masks else ")")
             )
-        sets = [
-            self._criterion_set(name, gt, valid, camera, bool_masks, right, roi)
-            for name in self.criteria
-        ]
+        built: dict[str, crit.CriterionSet] = {}
+        for name in self.criteria:
+            built[name] = self._criterion_set(
+                name, gt, valid, camera, bool_masks, right, roi, built
+            )
+        sets = [built[name] for name in self.criteria]
         partition = crit.build_partition(valid, sets)
         gt_sorted = gt.ravel()[partition.order]
         fb = camera.fb if camera else 1.0
@@ -242,21 +244,23 @@ class Evaluator:
         masks: Mapping[str, np.ndarray],
         gt_right: np.ndarray | None,
         roi: np.ndarray | None,
+        built: dict[str, crit.CriterionSet],
     ) -> crit.CriterionSet:
-        visibility_options = {
-            "nonocc": masks.get("nonocc"),
-            "disc": masks.get("disc"),
-            "gt_right": gt_right,
-            "gap": self.boundary_gap,
-            "width": self.boundary_width,
-            "tolerance": self.occlusion_tolerance,
-        }
+        """One criterion set; ``built`` holds the sets made so far (legacy reuses visibility)."""
         if name == "all":
             return crit.all_set(valid)
-        if name == "visibility":
-            return crit.visibility_set(gt, valid, **visibility_options)  # type: ignore[arg-type]
-        if name == "legacy":
-            return crit.legacy_set(gt, valid, **visibility_options)  # type: ignore[arg-type]
+        if name in ("visibility", "legacy"):
+            visibility = built.get("visibility") or crit.visibility_set(
+                gt,
+                valid,
+                nonocc=masks.get("nonocc"),
+                disc=masks.get("disc"),
+                gt_right=gt_right,
+                gap=self.boundary_gap,
+                width=self.boundary_width,
+                tolerance=self.occlusion_tolerance,
+            )
+            return visibility if name == "visibility" else crit.legacy_set(visibility)
         if name == "depth":
             return crit.depth_set(gt, valid, camera=camera, ranges=self.depth_ranges)
         if roi is None:

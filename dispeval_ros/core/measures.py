@@ -22,9 +22,7 @@ DEFAULT_QUANTILES = (50, 90, 95, 99)
 DEFAULT_MEASURES = (
     "bmp",
     "bmp_count",
-    "bad_0.5",
-    "bad_2",
-    "bad_4",
+    *(f"bad_{t:g}" for t in DEFAULT_BAD_THRESHOLDS),
     "mae",
     "mse",
     "rmse",
@@ -34,32 +32,10 @@ DEFAULT_MEASURES = (
     "bmpre",
     "bmpre_mean",
     "d1",
-    "a50",
-    "a90",
-    "a95",
-    "a99",
+    *(f"a{q}" for q in DEFAULT_QUANTILES),
     "density",
 )
-SEQUENCE_MEASURES = tuple(m for m in DEFAULT_MEASURES if not m.startswith("a"))
-"""Default for sequences and live streams: quantiles are neither summable over frames nor cheap."""
-SUM_MEASURES = ("sze", "bmpre", "bmp_count")
 HIGHER_IS_BETTER = ("density",)
-_SIMPLE = frozenset(
-    {
-        "bmp",
-        "bmp_count",
-        "mae",
-        "mse",
-        "rmse",
-        "mre",
-        "sze",
-        "sze_mean",
-        "bmpre",
-        "bmpre_mean",
-        "d1",
-        "density",
-    }
-)
 _BAD = re.compile(r"^bad_(\d+(?:\.\d+)?)$")
 _QUANTILE = re.compile(r"^a(\d{1,2}(?:\.\d+)?)$")
 
@@ -85,7 +61,11 @@ def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
         return DEFAULT_MEASURES
     chosen: list[str] = []
     for name in names:
-        if name in _SIMPLE or bad_threshold(name) is not None or quantile_level(name) is not None:
+        if (
+            name in _FROM_SUMS
+            or bad_threshold(name) is not None
+            or quantile_level(name) is not None
+        ):
             if name not in chosen:
                 chosen.append(name)
             continue
@@ -96,6 +76,10 @@ def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
     if not chosen:
         raise ConfigurationError("no measure chosen")
     return tuple(chosen)
+
+
+SEQUENCE_MEASURES = tuple(m for m in DEFAULT_MEASURES if quantile_level(m) is None)
+"""Default for sequences and live streams: quantiles are neither summable over frames nor cheap."""
 
 
 def thresholds_for(measures: Sequence[str], delta: float) -> np.ndarray:
