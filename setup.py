@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -11,10 +12,18 @@ PACKAGE = "dispeval_ros"
 
 
 def requirements() -> list[str]:
-    """Runtime requirements; OpenCV only when no cv2 (e.g. ROS's python3-opencv) is present."""
+    """Runtime requirements for pip; none declared to setuptools in a ROS build.
+
+    Under ``colcon build`` (``AMENT_PREFIX_PATH`` set) package.xml and rosdep provide the
+    dependencies (numba, OpenCV from apt have other distribution names or older versions), and
+    Humble's setuptools would make the node scripts refuse to start over a name mismatch.
+    OpenCV is required only when no cv2 (e.g. ROS's python3-opencv) is importable.
+    """
+    if os.environ.get("AMENT_PREFIX_PATH"):
+        return ["setuptools"]
     required = [
         "numpy>=1.21",
-        "numba>=0.56",
+        "numba>=0.55",
         "rosbags>=0.11",
         "mcap>=1.2",
         "mcap-ros2-support>=0.5",
@@ -27,6 +36,23 @@ def requirements() -> list[str]:
 DDS = ["cyclonedds>=0.10.5"]
 REPORT = ["matplotlib>=3.5"]
 TEST = ["pytest>=7", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT]
+
+
+def console_scripts() -> list[str]:
+    """``dispeval`` always; the ROS node executables only when building in a ROS environment.
+
+    ``colcon build`` runs with ``AMENT_PREFIX_PATH`` set; the nodes then land in
+    ``lib/dispeval_ros`` (see setup.cfg) where ``ros2 run dispeval_ros evaluator`` finds them.
+    A plain ``pip install .`` does not put commands named ``evaluator``/``summarizer`` on PATH.
+    """
+    scripts = ["dispeval = dispeval_ros.cli.main:main"]
+    if os.environ.get("AMENT_PREFIX_PATH"):
+        scripts += [
+            "evaluator = dispeval_ros.ros.evaluator:main",
+            "summarizer = dispeval_ros.ros.summarizer:main",
+        ]
+    return scripts
+
 
 setup(
     name=PACKAGE,
@@ -53,9 +79,5 @@ setup(
     maintainer_email="dispeval-ros@example.org",
     description="Evaluate stereo disparity maps by set-partition criteria, SZE/BMPRE and Pareto models.",
     license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "dispeval = dispeval_ros.cli.main:main",
-        ],
-    },
+    entry_points={"console_scripts": console_scripts()},
 )

@@ -1,0 +1,376 @@
+"""The ``evaluator`` node (``dispeval_evaluator``): score stereo methods live, publish the scores.
+
+A thin adapter over :class:`~dispeval_ros.live.runner.LiveEvaluator`: subscription callbacks
+only push messages (joining by header stamp, never scoring); the scoring thread publishes each
+frame's results:
+
+- ``/dispeval/scores`` (``diagnostic_msgs/DiagnosticArray``, stamp = the ground-truth frame's):
+  one status per method (name = method, hardware_id = its topic, every ``criterion/measure``
+  plus the exact sums, level from the alarms), and an ERROR status per frame problem;
+- ``/dispeval/NAME/vector`` (``std_msgs/Float64MultiArray``) with its labels latched on
+  ``/dispeval/NAME/vector_labels`` (see :mod:`dispeval_ros.ros.convert`);
+- with ``error_images``: ``/dispeval/NAME/error`` (32FC1) and ``/dispeval/NAME/error_color``
+  (rgb8).
+
+With the ``bag`` parameter a thread replays the recording into the same evaluator instead of
+subscribing. On SIGINT / SIGTERM (or the end of a replay) every frame already joined is scored
+and published before the node exits, and the per-method counts are logged.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Float64MultiArray, String
+from stereo_msgs.msg import DisparityImage
+
+from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
+from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.live.core import (
+    CAMERA_INFO_TYPE,
+    DISPARITY_TYPE,
+    IMAGE_TYPE,
+    FrameResult,
+    MethodCounts,
+)
+from dispeval_ros.live.images import colour_error
+from dispeval_ros.live.replay import replay
+from dispeval_ros.live.runner import LiveEvaluator
+from dispeval_ros.live.vectors import AlarmThresholds, score_vector, scores_status, vector_labels
+from dispeval_ros.ros import convert
+from dispeval_ros.ros.params import (
+    EVALUATOR_PARAMETERS,
+    declare_parameters,
+    evaluator_options,
+    run_node,
+)
+
+NODE_NAME = "dispeval_evaluator"
+SCORES_TOPIC = "/dispeval/scores"
+RESULTS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+LOG_PERIOD = 5.0
+"""Seconds between repeated log lines of the same kind (frame problems, publish failures)."""
+ACK_TIMEOUT = 2.0
+"""Seconds to wait at shutdown for subscribers to acknowledge the last scores."""
+
+_MESSAGE_CLASSES = {IMAGE_TYPE: Image, DISPARITY_TYPE: DisparityImage, CAMERA_INFO_TYPE: CameraInfo}
+
+
+def method_topic(method: str, leaf: str) -> str:
+    """``/dispeval/METHOD/LEAF``: where a method's vector and error images go."""
+    return f"/dispeval/{method}/{leaf}"
+
+
+class EvaluatorNode(Node):
+    """Subscriptions (or a bag replay) → :class:`LiveEvaluator` → result publishers."""
+
+    def __init__(self, *, stop: threading.Event | None = None, **node_options: Any) -> None:
+        super().__init__(NODE_NAME, **node_options)
+        self.exit_code = 0
+        self._stop = stop if stop is not None else threading.Event()
+        values = declare_parameters(self, EVALUATOR_PARAMETERS)
+        self.options = evaluator_options(values)
+        self.config = self.options.core
+        self._alarm_items = {name: tuple(values[name]) for name in ("alarm_warn", "alarm_error")}
+        self._alarms: AlarmThresholds = self.options.alarms
+        self._gt_frame_id = ""
+        self._labels: dict[str, list[str]] = {}
+        self._finished = False
+        if self.options.bag is not None:
+            _check_bag(self.options.bag, list(self.config.topics))
+
+        methods = list(self.config.methods)
+        self._scores_pub = self.create_publisher(DiagnosticArray, SCORES_TOPIC, RESULTS_QOS)
+        self._vector_pubs = {
+            m: self.create_publisher(Float64MultiArray, method_topic(m, "vector"), RESULTS_QOS)
+            for m in methods
+        }
+        self._label_pubs = {
+            m: self.create_publisher(String, method_topic(m, "vector_labels"), LATCHED_QOS)
+            for m in methods
+        }
+        self._error_pubs: dict[str, Any] = {}
+        self._colour_pubs: dict[str, Any] = {}
+        if self.options.error_images:
+            for m in methods:
+                self._error_pubs[m] = self.create_publisher(
+                    Image, method_topic(m, "error"), RESULTS_QOS
+                )
+                self._colour_pubs[m] = self.create_publisher(
+                    Image, method_topic(m, "error_color"), RESULTS_QOS
+                )
+
+        self._live = LiveEvaluator(
+            self.config,
+            self._on_result,
+            queue_size=self.options.queue_size,
+            max_buffered=self.options.max_buffered,
+            error_images=self.options.error_images,
+        )
+        self._replay_thread: threading.Thread | None = None
+        if self.options.bag is not None:
+            self._replay_thread = threading.Thread(
+                target=self._replay, name="dispeval-replay", daemon=True
+            )
+            self._replay_thread.start()
+        else:
+            for topic, type_name in self.config.topics.items():
+                self.create_subscription(
+                    _MESSAGE_CLASSES[type_name],
+                    topic,
+                    self._subscriber(topic),
+                    qos_profile_sensor_data,
+                )
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        source = f"bag {self.options.bag}" if self.options.bag is not None else "live topics"
+        self.get_logger().info(
+            f"evaluating {', '.join(f'{m} ({t})' for m, t in self.config.methods.items())} "
+            f"against {self.config.gt_topic} from {source}"
+        )
+
+    # -- input ------------------------------------------------------------------------------
+
+    def _subscriber(self, topic: str) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            self._push(topic, msg)
+
+        return callback
+
+    def _push(self, topic: str, msg: Any) -> None:
+        """Hand one message to the live evaluator (never blocks on scoring)."""
+        try:
+            if topic == self.config.gt_topic:
+                self._gt_frame_id = str(msg.header.frame_id)
+            self._live.push(topic, msg)
+        except DispevalError as error:
+            self.get_logger().warning(
+                f"ignoring a message on {topic}: {error}", throttle_duration_sec=LOG_PERIOD
+            )
+
+    def _replay(self) -> None:
+        """The bag thread: replay (again and again with ``bag_loop``), then stop the node."""
+        options = self.options
+        assert options.bag is not None
+        try:
+            if not self._wait_for_subscribers(options.bag_wait_subscribers):
+                return
+            offset = 0
+            passes = 0
+            while not self._stop.is_set():
+                first, last, pushed = self._replay_once(options.bag, offset)
+                passes += 1
+                if not options.bag_loop or pushed == 0 or first is None or last is None:
+                    break
+                # The next pass continues in stamp time after this one.
+                offset += last - first + self.config.tolerance_ns + self.config.lateness_ns + 1
+            self.get_logger().info(f"replayed {options.bag} ({passes} pass(es))")
+        except DispevalError as error:
+            self.get_logger().error(f"cannot replay {options.bag}: {error}")
+            self.exit_code = 2
+        except Exception as error:  # keep the node alive to finish what was scored
+            self.get_logger().error(f"replay of {options.bag} failed: {error!r}")
+            self.exit_code = 1
+        if self.exit_code or (options.bag_exit and not self._stop.is_set()):
+            self._stop.set()  # the main loop ends, finish() scores and publishes the rest
+        elif not self._stop.is_set():
+            self._live.stop(flush=True)  # score the tail now; the node stays up (bag_exit false)
+
+    def _wait_for_subscribers(self, wanted: int) -> bool:
+        """Wait until ``wanted`` subscribers matched /dispeval/scores; False if stopped first."""
+        logged = 0.0
+        while wanted and self._scores_pub.get_subscription_count() < wanted:
+            now = time.monotonic()
+            if now - logged > LOG_PERIOD:
+                self.get_logger().info(
+                    f"waiting for {wanted} subscriber(s) on {SCORES_TOPIC} before replaying"
+                )
+                logged = now
+            if self._stop.wait(0.1):
+                return False
+        return not self._stop.is_set()
+
+    def _replay_once(self, bag: Path, offset: int) -> tuple[int | None, int | None, int]:
+        """One pass over the bag; returns its first and last header stamps and the count."""
+        span: list[int] = []
+        as_fast_as_possible = self.options.bag_rate is None
+
+        def push(topic: str, msg: Any) -> None:
+            stamp = stamp_ns(msg.header)
+            if not span:
+                span.extend((stamp, stamp))
+            span[0], span[1] = min(span[0], stamp), max(span[1], stamp)
+            self._push(topic, _Shifted(msg, offset) if offset else msg)
+            if as_fast_as_possible:
+                self._live.wait_idle()  # lossless: never more than one frame ahead of scoring
+
+        pushed = replay(
+            bag, list(self.config.topics), push, rate=self.options.bag_rate, stop=self._stop
+        )
+        return (span[0], span[1], pushed) if span else (None, None, pushed)
+
+    # -- output (the scoring thread) --------------------------------------------------------
+
+    def _on_result(self, result: FrameResult) -> None:
+        """Publish one scored frame; never raises (it would stop the scoring thread)."""
+        try:
+            self._publish(result)
+        except Exception as error:
+            self.get_logger().error(
+                f"cannot publish the scores of the frame at {result.stamp} ns: {error!r}",
+                throttle_duration_sec=LOG_PERIOD,
+            )
+
+    def _publish(self, result: FrameResult) -> None:
+        alarms = self._alarms
+        frame_id = self._gt_frame_id
+        records = [
+            scores_status(
+                method,
+                self.config.methods[method],
+                scores,
+                alarms,
+                result.estimate_stamps.get(method),
+            )
+            for method, scores in result.scores.items()
+        ]
+        for method, problem in result.problems:
+            self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
+            topic = self.config.methods[method] if method is not None else self.config.gt_topic
+            records.append(convert.problem_record(method, topic, problem))
+        if records:
+            self._scores_pub.publish(convert.diagnostic_array(result.stamp, records, frame_id))
+        for method, scores in result.scores.items():
+            labels = vector_labels(scores.criteria, scores.measures)
+            if labels != self._labels.get(method):
+                self._labels[method] = labels
+                self._label_pubs[method].publish(convert.labels_msg(labels))
+            self._vector_pubs[method].publish(convert.vector_msg(score_vector(scores, labels)))
+        if result.partition is None:
+            return
+        for method, error in result.errors.items():
+            error_pub, colour_pub = self._error_pubs.get(method), self._colour_pubs.get(method)
+            if error_pub is not None and error_pub.get_subscription_count() > 0:
+                error_pub.publish(convert.image_msg(error, result.stamp, frame_id, "32FC1"))
+            if colour_pub is not None and colour_pub.get_subscription_count() > 0:
+                rgb = colour_error(error, result.partition)
+                colour_pub.publish(convert.image_msg(rgb, result.stamp, frame_id, "rgb8"))
+
+    # -- parameters -------------------------------------------------------------------------
+
+    def _on_set_parameters(self, parameters: Sequence[Any]) -> SetParametersResult:
+        """Alarm thresholds may change at run time; the new ones apply from the next frame."""
+        items = dict(self._alarm_items)
+        for parameter in parameters:
+            if parameter.name in items:
+                items[parameter.name] = tuple(parameter.value or ())
+        if items == self._alarm_items:
+            return SetParametersResult(successful=True)
+        try:
+            alarms = AlarmThresholds.parse(items["alarm_warn"], items["alarm_error"])
+        except ConfigurationError as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        self._alarm_items = items
+        self._alarms = alarms
+        return SetParametersResult(successful=True)
+
+    # -- shutdown ---------------------------------------------------------------------------
+
+    def finish(self, executor: Any = None) -> None:
+        """Stop input, score and publish every joined frame, log the counts (idempotent).
+
+        Call it before :meth:`destroy_node`: the last scores need the publishers.
+        """
+        if self._finished:
+            return
+        self._finished = True
+        self._stop.set()
+        if self._replay_thread is not None:
+            self._replay_thread.join(timeout=30.0)
+        self._live.stop(flush=True)
+        try:
+            self._scores_pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+        except Exception as error:  # e.g. the context is already shut down
+            self.get_logger().debug(f"not waiting for acknowledgements: {error!r}")
+        logger = self.get_logger()
+        stats = self._live.stats
+        logger.info(
+            f"scored {stats.results} frame(s); {stats.queue_drops} dropped because scoring "
+            "fell behind"
+        )
+        for method, counts in self._live.counts().items():
+            logger.info(
+                f"{method}: matched {counts.matched}, unmatched {counts.unmatched}, "
+                f"dropped {counts.dropped}, failed {counts.failed}"
+            )
+
+    @property
+    def frames_scored(self) -> int:
+        """How many joined frames have been scored (and published) so far."""
+        return self._live.stats.results
+
+    def counts(self) -> dict[str, MethodCounts]:
+        """Per method: matched (scored), unmatched, dropped and failed so far."""
+        return self._live.counts()
+
+
+class _Shifted:
+    """A message whose header stamp is moved by ``offset`` ns (each bag loop continues in time)."""
+
+    def __init__(self, msg: Any, offset: int) -> None:
+        self._msg = msg
+        sec, nanosec = divmod(stamp_ns(msg.header) + offset, 1_000_000_000)
+        self.header = SimpleNamespace(
+            stamp=SimpleNamespace(sec=sec, nanosec=nanosec),
+            frame_id=getattr(msg.header, "frame_id", ""),
+        )
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._msg, name)
+
+
+def _check_bag(path: Path, topics: Sequence[str]) -> None:
+    """Fail at start-up (one line) when the bag cannot be read or lacks a topic."""
+    with BagSource(path) as source:
+        missing = [topic for topic in topics if topic not in source.topics]
+    if missing:
+        raise InputError(
+            f"{path}: no topic {', '.join(missing)} in the bag; it has {', '.join(source.topics)}"
+        )
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """``ros2 run dispeval_ros evaluator``: run the node until SIGINT / SIGTERM."""
+    return run_node(lambda stop: EvaluatorNode(stop=stop), NODE_NAME, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,561 @@
+"""The rclpy nodes in-process: real publishers, subscriptions and services (needs ROS 2).
+
+Messages are built with rclpy's generated classes (helpers mirroring the rosbags encoders of
+``dispeval_ros.io.messages``) and published to the evaluator, whose ``/dispeval/scores`` must
+equal what :class:`~dispeval_ros.live.core.EvaluationCore` computes on the very same message
+objects, to the last bit. Skipped where rclpy is not installed (outside a ROS 2 environment);
+``colcon test`` runs it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dispeval_ros.core import Camera, Evaluator
+from dispeval_ros.core.measures import SEQUENCE_MEASURES
+from dispeval_ros.io.messages import image_from_msg, stamp_ns
+from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.live.core import EvaluationCore, FrameResult
+from dispeval_ros.live.images import colour_error
+from dispeval_ros.live.vectors import (
+    ERROR,
+    OK,
+    AlarmThresholds,
+    score_vector,
+    scores_from_status,
+    scores_status,
+    vector_labels,
+)
+from dispeval_ros.ros.params import (
+    DOUBLE,
+    EVALUATOR_PARAMETERS,
+    INTEGER,
+    SUMMARIZER_PARAMETERS,
+    Param,
+)
+
+rclpy = pytest.importorskip("rclpy")
+rclpy_context = pytest.importorskip("rclpy.context")
+rclpy_executors = pytest.importorskip("rclpy.executors")
+rclpy_parameter = pytest.importorskip("rclpy.parameter")
+diagnostic_msgs = pytest.importorskip("diagnostic_msgs.msg")
+rcl_interfaces = pytest.importorskip("rcl_interfaces.msg")
+sensor_msgs = pytest.importorskip("sensor_msgs.msg")
+std_msgs = pytest.importorskip("std_msgs.msg")
+std_srvs = pytest.importorskip("std_srvs.srv")
+stereo_msgs = pytest.importorskip("stereo_msgs.msg")
+
+# Imported only now: they need rclpy (import errors in them must fail, not skip).
+convert = importlib.import_module("dispeval_ros.ros.convert")
+evaluator_node = importlib.import_module("dispeval_ros.ros.evaluator")
+summarizer_node = importlib.import_module("dispeval_ros.ros.summarizer")
+
+Parameter = rclpy_parameter.Parameter
+
+DOMAIN_ID = 50 + os.getpid() % 50
+"""A domain of its own, so that other ROS 2 processes on the machine do not interfere."""
+TIMEOUT = 60.0
+H, W = 48, 64
+F, BASELINE = 100.0, 0.125
+"""Exact in float32, so the DisparityImage's f and t give the CameraInfo pair's camera."""
+FRAME_NS = 100_000_000
+START_NS = 1_700_000_000_000_000_000
+
+
+# -- harness ------------------------------------------------------------------------------------
+
+
+class Ros:
+    """One rclpy context with an executor, a helper node for test topics, and nodes under test."""
+
+    def __init__(self) -> None:
+        self.context = rclpy_context.Context()
+        rclpy.init(context=self.context, domain_id=DOMAIN_ID)
+        self.executor = rclpy_executors.SingleThreadedExecutor(context=self.context)
+        self.helper = rclpy.create_node("dispeval_test_helper", context=self.context)
+        self.executor.add_node(self.helper)
+        self.nodes: list[Any] = []
+
+    def add(self, node: Any) -> Any:
+        self.executor.add_node(node)
+        self.nodes.append(node)
+        return node
+
+    def evaluator(self, **parameters: Any) -> Any:
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        return self.add(
+            evaluator_node.EvaluatorNode(context=self.context, parameter_overrides=overrides)
+        )
+
+    def summarizer(self, **parameters: Any) -> Any:
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        return self.add(
+            summarizer_node.SummarizerNode(context=self.context, parameter_overrides=overrides)
+        )
+
+    def collect(self, msg_type: Any, topic: str, qos: Any) -> list[Any]:
+        received: list[Any] = []
+        self.helper.create_subscription(msg_type, topic, received.append, qos)
+        return received
+
+    def spin_until(self, condition: Callable[[], bool], timeout: float = TIMEOUT) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+        return condition()
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def destroy(self, node: Any) -> None:
+        node.finish()
+        self.executor.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
+
+    def close(self) -> None:
+        for node in list(self.nodes):
+            self.destroy(node)
+        self.executor.shutdown()
+        self.helper.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros() -> Iterator[Ros]:
+    harness = Ros()
+    try:
+        yield harness
+    finally:
+        harness.close()
+
+
+class Topics:
+    """Input topics of one test (unique, so tests never see each other's messages)."""
+
+    def __init__(self, name: str) -> None:
+        base = f"/dispeval_test_{name}_{os.getpid()}"
+        self.gt = f"{base}/ground_truth"
+        self.left = f"{base}/left/camera_info"
+        self.right = f"{base}/right/camera_info"
+        self.good = f"{base}/good/disparity"
+        self.bad = f"{base}/bad/disparity"
+
+
+# -- messages built with the rclpy classes ---------------------------------------------------------
+
+
+def gt_map(k: int) -> np.ndarray:
+    """A slanted plane with a band of missing ground truth; a bit different every frame."""
+    columns = np.arange(W, dtype=np.float32)
+    gt = np.broadcast_to(8.0 + 0.25 * columns + k, (H, W)).astype(np.float32)
+    gt[:, :6] = 0.0
+    gt[H // 2 :, W // 2 : W // 2 + 8] += 10.0  # a nearer box: boundaries and occlusions
+    return gt
+
+
+def estimate(gt: np.ndarray, error: float, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    est = gt + rng.normal(0.0, error, gt.shape).astype(np.float32)
+    est[:4, :] = -1.0  # stereo_image_proc's invalid marker (min_disparity - 1): missing
+    return est.astype(np.float32)
+
+
+def image_msg(array: np.ndarray, stamp: int, encoding: str = "32FC1") -> Any:
+    return convert.image_msg(array, stamp, "stereo_left", encoding)
+
+
+def disparity_msg(disparity: np.ndarray, stamp: int) -> Any:
+    height, width = disparity.shape
+    return stereo_msgs.DisparityImage(
+        header=convert.header_msg(stamp, "stereo_left"),
+        image=image_msg(disparity, stamp),
+        f=F,
+        t=BASELINE,
+        valid_window=sensor_msgs.RegionOfInterest(
+            x_offset=0, y_offset=0, height=height, width=width, do_rectify=False
+        ),
+        min_disparity=0.0,
+        max_disparity=64.0,
+        delta_d=1.0 / 16.0,
+    )
+
+
+def camera_info_msg(stamp: int, right: bool) -> Any:
+    cx, cy = W / 2.0 - 0.5, H / 2.0 - 0.5
+    tx = -F * BASELINE if right else 0.0
+    return sensor_msgs.CameraInfo(
+        header=convert.header_msg(stamp, "stereo_right" if right else "stereo_left"),
+        height=H,
+        width=W,
+        distortion_model="plumb_bob",
+        d=[0.0] * 5,
+        k=np.array([F, 0.0, cx, 0.0, F, cy, 0.0, 0.0, 1.0]),
+        r=np.eye(3).reshape(-1),
+        p=np.array([F, 0.0, cx, tx, 0.0, F, cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
+        binning_x=0,
+        binning_y=0,
+        roi=sensor_msgs.RegionOfInterest(),
+    )
+
+
+def frame_messages(topics: Topics, k: int, bad_shape: bool = False) -> list[tuple[str, Any]]:
+    stamp = START_NS + k * FRAME_NS
+    gt = gt_map(k)
+    bad = estimate(gt, 2.0, 100 + k)
+    if bad_shape:
+        bad = bad[: H // 2]
+    return [
+        (topics.gt, image_msg(gt, stamp)),
+        (topics.good, disparity_msg(estimate(gt, 0.3, k), stamp)),
+        (topics.bad, disparity_msg(bad, stamp)),
+    ]
+
+
+def publishers(ros: Ros, topics: Topics) -> dict[str, Any]:
+    types = {
+        topics.gt: sensor_msgs.Image,
+        topics.left: sensor_msgs.CameraInfo,
+        topics.right: sensor_msgs.CameraInfo,
+        topics.good: stereo_msgs.DisparityImage,
+        topics.bad: stereo_msgs.DisparityImage,
+    }
+    return {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
+
+
+def matched(pubs: dict[str, Any], topics: list[str]) -> Callable[[], bool]:
+    return lambda: all(pubs[topic].get_subscription_count() > 0 for topic in topics)
+
+
+def statuses(array: Any) -> dict[str, Any]:
+    return {status.name: status for status in array.status}
+
+
+# -- evaluator --------------------------------------------------------------------------------------
+
+
+def descriptor_type(param: Param) -> int:
+    types = rcl_interfaces.ParameterType
+    return {
+        "bool": types.PARAMETER_BOOL,
+        "integer": types.PARAMETER_INTEGER,
+        "double": types.PARAMETER_DOUBLE,
+        "string": types.PARAMETER_STRING,
+        "string[]": types.PARAMETER_STRING_ARRAY,
+    }[param.kind]
+
+
+def check_descriptors(node: Any, table: tuple[Param, ...]) -> None:
+    for param in table:
+        descriptor = node.describe_parameter(param.name)
+        assert descriptor.description == param.description
+        assert descriptor.additional_constraints == param.constraints
+        assert descriptor.read_only == param.read_only
+        assert descriptor.type == descriptor_type(param)
+        if param.low is not None:
+            ranges = (
+                descriptor.floating_point_range
+                if param.kind == DOUBLE
+                else descriptor.integer_range
+            )
+            assert param.kind in (DOUBLE, INTEGER)
+            assert len(ranges) == 1
+            assert (ranges[0].from_value, ranges[0].to_value) == (param.low, param.high)
+
+
+def test_parameters_have_descriptors_and_alarms_change_at_run_time(ros: Ros) -> None:
+    topics = Topics("params")
+    node = ros.evaluator(methods=[f"good:{topics.good}"], gt_topic=topics.gt)
+    check_descriptors(node, EVALUATOR_PARAMETERS)
+    assert node.get_parameter("queue_size").value == 4
+    assert list(node.get_parameter("criteria").value) == ["all", "visibility", "depth"]
+    assert node.config.methods == {"good": topics.good}
+    assert node.config.measures is None  # unset: the summable default set
+
+    (refused,) = node.set_parameters([Parameter("gt_topic", value="/elsewhere")])
+    assert not refused.successful  # read-only
+    (bad,) = node.set_parameters([Parameter("alarm_warn", value=["bmp"])])
+    assert not bad.successful
+    assert "CRITERION/MEASURE" in bad.reason
+    (good,) = node.set_parameters([Parameter("alarm_warn", value=["all/bmp=0"])])
+    assert good.successful
+
+
+def test_summarizer_parameters_have_descriptors(ros: Ros, tmp_path: Path) -> None:
+    node = ros.summarizer(output_dir=str(tmp_path / "out"))
+    check_descriptors(node, SUMMARIZER_PARAMETERS)
+    assert node.options.config.out == tmp_path / "out"
+
+
+def test_scores_vectors_and_error_images_equal_the_core(ros: Ros) -> None:
+    topics = Topics("scores")
+    node = ros.evaluator(
+        methods=[f"good:{topics.good}", f"bad:{topics.bad}"],
+        gt_topic=topics.gt,
+        left_camera_info=topics.left,
+        right_camera_info=topics.right,
+        error_images=True,
+    )
+    pubs = publishers(ros, topics)
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    vectors = ros.collect(
+        std_msgs.Float64MultiArray, "/dispeval/good/vector", evaluator_node.RESULTS_QOS
+    )
+    labels = ros.collect(
+        std_msgs.String, "/dispeval/good/vector_labels", evaluator_node.LATCHED_QOS
+    )
+    errors = ros.collect(sensor_msgs.Image, "/dispeval/bad/error", evaluator_node.RESULTS_QOS)
+    colours = ros.collect(
+        sensor_msgs.Image, "/dispeval/bad/error_color", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, list(pubs)))
+    assert ros.spin_until(
+        lambda: all(
+            pub.get_subscription_count() > 0
+            for pub in (
+                node._scores_pub,
+                node._vector_pubs["good"],
+                node._error_pubs["bad"],
+                node._colour_pubs["bad"],
+            )
+        )
+    )
+
+    core = EvaluationCore(node.config, error_images=True)
+    infos = [(topics.left, camera_info_msg(START_NS, False))]
+    infos.append((topics.right, camera_info_msg(START_NS, True)))
+    for topic, msg in infos:
+        pubs[topic].publish(msg)
+        core.push(topic, msg)
+    # Until both CameraInfo messages are in, the evaluator would score without a camera.
+    assert ros.spin_until(lambda: node._live.core.camera() is not None)
+    assert node._live.core.camera() == core.camera()
+
+    expected: list[FrameResult] = []
+    for k in range(3):
+        for topic, msg in frame_messages(topics, k):
+            pubs[topic].publish(msg)
+            expected.extend(core.score(frame_set) for frame_set in core.push(topic, msg))
+        assert ros.spin_until(lambda k=k: len(scores) == k + 1), f"no scores for frame {k}"
+    assert ros.spin_until(lambda: len(vectors) == 3 and len(errors) == 3 and len(colours) == 3)
+    assert ros.spin_until(lambda: len(labels) >= 1)
+    assert len(expected) == 3
+
+    no_alarms = AlarmThresholds()
+    for array, result in zip(scores, expected, strict=True):
+        assert stamp_ns(array.header) == result.stamp
+        got = statuses(array)
+        assert set(got) == {"good", "bad"}
+        for method, method_scores in result.scores.items():
+            record = scores_status(
+                method,
+                node.config.methods[method],
+                method_scores,
+                no_alarms,
+                result.estimate_stamps[method],
+            )
+            status = got[method]
+            assert convert.status_level(status) == record.level == OK
+            assert status.hardware_id == record.hardware_id
+            assert status.message == record.message
+            assert convert.status_values(status) == list(record.values)  # exact numbers
+            rebuilt = scores_from_status(convert.status_values(status))
+            np.testing.assert_array_equal(rebuilt.sums, method_scores.sums)
+
+    good_scores = expected[-1].scores["good"]
+    names = vector_labels(good_scores.criteria, good_scores.measures)
+    assert json.loads(labels[-1].data) == names
+    layout = vectors[-1].layout
+    assert [(d.label, d.size, d.stride) for d in layout.dim] == [
+        (convert.VECTOR_DIM_LABEL, len(names), len(names))
+    ]
+    assert layout.data_offset == 0
+    np.testing.assert_array_equal(
+        np.asarray(vectors[-1].data), np.asarray(score_vector(good_scores, names))
+    )
+
+    for error_msg, colour_msg, result in zip(errors, colours, expected, strict=True):
+        assert stamp_ns(error_msg.header) == result.stamp
+        assert error_msg.encoding == "32FC1"
+        np.testing.assert_array_equal(image_from_msg(error_msg).array, result.errors["bad"])
+        assert colour_msg.encoding == "rgb8"
+        assert result.partition is not None
+        np.testing.assert_array_equal(
+            image_from_msg(colour_msg).array, colour_error(result.errors["bad"], result.partition)
+        )
+
+
+def test_frame_problems_are_error_statuses(ros: Ros) -> None:
+    topics = Topics("problems")
+    node = ros.evaluator(methods=[f"good:{topics.good}", f"bad:{topics.bad}"], gt_topic=topics.gt)
+    pubs = publishers(ros, topics)
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, [topics.gt, topics.good, topics.bad]))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    for topic, msg in frame_messages(topics, 0, bad_shape=True):
+        pubs[topic].publish(msg)
+    assert ros.spin_until(lambda: len(scores) == 1)
+    got = statuses(scores[0])
+    assert convert.status_level(got["good"]) == OK
+    problem = got["bad"]
+    assert convert.status_level(problem) == ERROR
+    assert problem.hardware_id == topics.bad
+    ((key, text),) = convert.status_values(problem)
+    assert key == convert.PROBLEM_KEY
+    assert text == problem.message
+    assert topics.bad in text
+    node.finish()
+    counts = node.counts()
+    assert (counts["bad"].failed, counts["bad"].matched) == (1, 0)
+    assert (counts["good"].failed, counts["good"].matched) == (0, 1)
+
+
+def test_shutdown_scores_and_publishes_the_frames_still_waiting(ros: Ros) -> None:
+    topics = Topics("flush")
+    node = ros.evaluator(
+        methods=[f"good:{topics.good}", f"bad:{topics.bad}"], gt_topic=topics.gt, lateness=600.0
+    )
+    pubs = publishers(ros, topics)
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, [topics.gt, topics.good]))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    gt, good, _ = frame_messages(topics, 0)
+    for topic, msg in (gt, good):  # "bad" never delivers: the frame waits for it
+        pubs[topic].publish(msg)
+    assert ros.spin_until(lambda: node.counts()["good"].matched == 1)
+    ros.spin_for(0.5)
+    assert scores == []
+
+    node.finish()  # what SIGINT does: flush, score, publish
+    assert ros.spin_until(lambda: len(scores) == 1)
+    assert set(statuses(scores[0])) == {"good"}
+    counts = node.counts()
+    assert (counts["good"].matched, counts["bad"].dropped) == (1, 1)
+    assert node.frames_scored == 1
+
+
+# -- summarizer -------------------------------------------------------------------------------------
+
+
+def synthetic_scores(frames: int) -> list[tuple[int, dict[str, Any]]]:
+    evaluator = Evaluator(("all", "depth"), SEQUENCE_MEASURES)
+    camera = Camera(F, BASELINE)
+    result = []
+    for k in range(frames):
+        gt = gt_map(k)
+        result.append(
+            (
+                START_NS + k * FRAME_NS,
+                {
+                    "good": evaluator.score(gt, estimate(gt, 0.3, k), camera=camera),
+                    "bad": evaluator.score(gt, estimate(gt, 2.0, 100 + k), camera=camera),
+                },
+            )
+        )
+    return result
+
+
+def scores_array(stamp: int, frame: dict[str, Any]) -> Any:
+    records = [scores_status(m, f"/t/{m}", s, None, stamp) for m, s in frame.items()]
+    return convert.diagnostic_array(stamp, records)
+
+
+def test_summarizer_stores_every_frame_at_shutdown(ros: Ros, tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    node = ros.summarizer(output_dir=str(out), summary_every=1000, drain_timeout=0.5)
+    publisher = ros.helper.create_publisher(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    )
+    groups = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/groups", summarizer_node.GROUPS_QOS
+    )
+    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
+    frames = synthetic_scores(5)
+    for stamp, frame in frames:
+        publisher.publish(scores_array(stamp, frame))
+    assert ros.spin_until(lambda: node.frames_received == 5)
+    with ResultsStore.open(out) as store:  # fewer frames than summary_every: none stored yet
+        assert store.stamps(node.sequence) == []
+
+    node.finish(ros.executor)  # what SIGINT does: drain, store, summarize
+    assert ros.spin_until(lambda: len(groups) >= 1)
+    assert {status.name for status in groups[-1].status} == {"good", "bad"}
+    sequence = node.sequence
+    ros.destroy(node)
+
+    with ResultsStore.open(out) as store:
+        assert store.sequences() == [sequence]
+        assert store.stamps(sequence) == [stamp for stamp, _ in frames]
+        assert set(store.methods()) == {"good", "bad"}
+        totals = store.sequence_scores(sequence)
+    for method in ("good", "bad"):
+        expected = np.sum([frame[method].sums for _, frame in frames], axis=0)
+        np.testing.assert_allclose(totals[method].sums, expected, rtol=1e-12)
+    assert (out / "summary.json").is_file()
+    assert (out / "frames.csv").is_file()
+
+
+def test_new_sequence_service_starts_a_sequence(ros: Ros, tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    node = ros.summarizer(output_dir=str(out), summary_every=2, drain_timeout=0.0)
+    publisher = ros.helper.create_publisher(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    )
+    client = ros.helper.create_client(std_srvs.Trigger, "/dispeval_summarizer/new_sequence")
+    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
+    assert client.wait_for_service(timeout_sec=TIMEOUT)
+    frames = synthetic_scores(4)
+    first = node.sequence
+    for stamp, frame in frames[:2]:
+        publisher.publish(scores_array(stamp, frame))
+    assert ros.spin_until(lambda: node.frames_received == 2)
+
+    future = client.call_async(std_srvs.Trigger.Request())
+    assert ros.spin_until(future.done)
+    response = future.result()
+    assert response.success, response.message
+    second = node.sequence
+    assert second != first
+
+    for stamp, frame in frames[2:]:
+        publisher.publish(scores_array(stamp, frame))
+    assert ros.spin_until(lambda: node.frames_received == 4)
+    ros.destroy(node)
+    with ResultsStore.open(out) as store:
+        assert store.sequences() == [first, second]
+        assert store.stamps(first) == [stamp for stamp, _ in frames[:2]]
+        assert store.stamps(second) == [stamp for stamp, _ in frames[2:]]
+
+
+def test_problem_statuses_are_not_stored(ros: Ros, tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    node = ros.summarizer(output_dir=str(out), summary_every=1, drain_timeout=0.0)
+    publisher = ros.helper.create_publisher(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    )
+    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
+    ((stamp, frame),) = synthetic_scores(1)
+    records = [scores_status("good", "/t/good", frame["good"], None, stamp)]
+    records.append(convert.problem_record("bad", "/t/bad", "/t/bad at 0: size mismatch"))
+    publisher.publish(convert.diagnostic_array(stamp, records))
+    assert ros.spin_until(lambda: node.frames_received == 1)
+    ros.destroy(node)
+    with ResultsStore.open(out) as store:
+        assert store.methods() == ["good"]
