@@ -74,7 +74,13 @@ def replay_sample(args: argparse.Namespace) -> int:
     config = CoreConfig(
         methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO
     )
-    record = {"bag": str(bag), "methods": methods, "criteria": list(config.criteria)}
+    record = {
+        "bag": str(bag),
+        "methods": methods,
+        "criteria": list(config.criteria),
+        "gt_topic": GT_TOPIC,  # recorded so that `dispeval report --bag` can re-score frames
+        "camera_info": [LEFT_INFO, RIGHT_INFO],
+    }
     progress = Progress("dispeval demo", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
         evaluate_bags(
@@ -87,12 +93,22 @@ def replay_sample(args: argparse.Namespace) -> int:
         rows = store.export_csv(out / "frames.csv")
         summary = summarize(store)
         problems = store.problems()
+        # -- the interactive report of these results (as `dispeval report OUT --bag BAG`)
+        from dispeval_ros.report.data import build_report_data, error_thumbnails
+        from dispeval_ros.report.html import write_report
+
+        report = out / "report.html"
+        thumbnails = error_thumbnails(store, [bag], config=config)
+        write_report(build_report_data(store, title="dispeval demo", thumbnails=thumbnails), report)
+        # -- end of the report
     if args.json:
-        print_json({"results": str(out), "bag": str(bag), **summary.to_dict()})
+        document = {"results": str(out), "bag": str(bag), "report": str(report)}
+        print_json({**document, **summary.to_dict()})
         return 0
     print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
     print(run_summary_text(summary, problems))
     print(f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'})")
+    print(f"report: {report}")
     print(f"(done in {time.perf_counter() - started:.1f} s)")
     return 0
 

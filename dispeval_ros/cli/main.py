@@ -7,10 +7,19 @@ import sys
 from collections.abc import Sequence
 
 from dispeval_ros import __version__
-from dispeval_ros.cli import bag_cmd, demo_cmd, eval_cmd, make_bag_cmd, models_cmd
+from dispeval_ros.cli import (
+    bag_cmd,
+    demo_cmd,
+    eval_cmd,
+    live_cmd,
+    make_bag_cmd,
+    models_cmd,
+    play_cmd,
+    report_cmd,  # the interactive HTML report
+)
 from dispeval_ros.errors import DispevalError
 
-COMMANDS = (eval_cmd, bag_cmd, models_cmd, make_bag_cmd, demo_cmd)
+COMMANDS = (eval_cmd, bag_cmd, models_cmd, make_bag_cmd, demo_cmd, live_cmd, play_cmd, report_cmd)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,294 @@
+"""``dispeval live``: evaluate a robot's live stereo streams over DDS, without ROS."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from dispeval_ros.cli import bag_cmd, common
+from dispeval_ros.cli.summary import run_summary_text
+from dispeval_ros.dds import environment
+from dispeval_ros.errors import ConfigurationError
+
+HELP = "evaluate live stereo streams (ROS 2 topics over Cyclone DDS, no ROS needed)"
+TRANSPORTS = ("dds",)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``live``."""
+    parser = subparsers.add_parser(
+        "live",
+        help=HELP,
+        description=HELP + ". Subscribes to the ground truth and every method's DisparityImage "
+        "(best-effort, as sensor data), scores each frame joined by stamp, publishes "
+        "/dispeval/scores (DiagnosticArray), /dispeval/<method>/vector (Float64MultiArray) and "
+        "/dispeval/groups, and writes the same results.sqlite, frames.csv and summary.json as "
+        "'dispeval bag' into --out. Ctrl-C (SIGINT) or SIGTERM stops cleanly.",
+    )
+    parser.add_argument(
+        "--transport",
+        default="dds",
+        help="'dds' (Cyclone DDS, interoperates with rmw_cyclonedds_cpp); the only one for now",
+    )
+    topics = parser.add_argument_group("topics")
+    topics.add_argument(
+        "--gt", required=True, metavar="TOPIC", help="ground-truth sensor_msgs/Image topic"
+    )
+    topics.add_argument(
+        "--method",
+        action="append",
+        required=True,
+        metavar="NAME=TOPIC",
+        help="a method's stereo_msgs/DisparityImage topic; repeat for every method",
+    )
+    topics.add_argument(
+        "--camera-info",
+        nargs=2,
+        metavar=("LEFT", "RIGHT"),
+        help="left and right CameraInfo topics; default: f and t of the DisparityImage",
+    )
+    topics.add_argument(
+        "--gt-kind",
+        choices=("disparity", "depth"),
+        default="disparity",
+        help="ground truth is disparity (32FC1 px, 16UC1 / scale) or depth (32FC1 m, 16UC1 mm)",
+    )
+    topics.add_argument(
+        "--gt-scale", type=float, help="16-bit GT divisor (disparity default 256, depth 1000)"
+    )
+    topics.add_argument(
+        "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
+    )
+    topics.add_argument(
+        "--lateness",
+        type=float,
+        default=1000.0,
+        help="how late (ms, in stamp time) an estimate may arrive after its ground truth "
+        "(default 1000)",
+    )
+    common.add_evaluation_options(parser)
+    alarms = parser.add_argument_group("alarms (levels of the published statuses)")
+    alarms.add_argument("--warn", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=20")
+    alarms.add_argument("--error", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=40")
+    run = parser.add_argument_group("run")
+    run.add_argument(
+        "--out",
+        type=Path,
+        default=Path("dispeval-results"),
+        help="results folder (default ./dispeval-results)",
+    )
+    run.add_argument(
+        "--resume", action="store_true", help="add to the results in --out (as new sequences)"
+    )
+    run.add_argument(
+        "--summary-every",
+        type=int,
+        default=10,
+        metavar="N",
+        help="write frames and recompute the groups every N frames (default 10); the period "
+        "grows when a summary would take more than a tenth of the time (long runs)",
+    )
+    run.add_argument(
+        "--objectives",
+        choices=("sequence", "frame"),
+        default="sequence",
+        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
+    )
+    run.add_argument(
+        "--objective-measures",
+        nargs="+",
+        default=["sze", "bmpre"],
+        metavar="M",
+        help="measures that form the objectives (default: sze bmpre)",
+    )
+    run.add_argument(
+        "--queue-size",
+        type=int,
+        default=4,
+        metavar="N",
+        help="joined frames waiting for scoring before the oldest is dropped (default 4)",
+    )
+    run.add_argument(
+        "--duration", type=float, default=None, metavar="S", help="stop after S seconds"
+    )
+    run.add_argument("--quiet", action="store_true", help="no live line")
+    environment.add_arguments(parser)
+    parser.set_defaults(run=run_command)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Check the options, evaluate until stopped, finish the results, print the summary."""
+    if args.transport not in TRANSPORTS:
+        raise ConfigurationError(
+            f"--transport {args.transport} is not available; use --transport dds "
+            "(in a ROS 2 workspace, run dispeval's rclpy nodes with ros2 run instead)"
+        )
+    if args.depth_ranges:
+        raise ConfigurationError(
+            "--depth-ranges is not available for live streams yet; use the 3-means depth criteria"
+        )
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigurationError(f"--duration must be positive, got {args.duration}")
+    if args.queue_size < 1:
+        raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
+    config = bag_cmd.core_config(args)
+    missing = [m for m in args.objective_measures if m not in (config.measures or ())]
+    if missing:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(missing)} are not among --measures "
+            f"({', '.join(config.measures or ())})"
+        )
+
+    from dispeval_ros.dds.evaluator import warm_up
+    from dispeval_ros.dds.session import LiveSession
+    from dispeval_ros.dds.wire import GROUPS_TOPIC, SCORES_TOPIC, vector_topic
+    from dispeval_ros.live.summarizer import SummarizerConfig
+    from dispeval_ros.live.vectors import AlarmThresholds
+
+    for method in config.methods:
+        vector_topic(method)
+    alarms = AlarmThresholds.parse(args.warn, args.error)
+    summary_config = SummarizerConfig(
+        args.out, args.objective_measures, args.objectives, args.summary_every, args.resume
+    )
+    uri = environment.configure(args.dds_config)
+    domain = environment.domain_id(args.domain_id)
+    environment.require_cyclonedds()
+    record: dict[str, object] = {
+        "source": "dispeval live (DDS)",
+        "methods": dict(config.methods),
+        "gt_topic": config.gt_topic,
+        "gt_kind": config.gt_kind,
+        "gt_scale": config.gt_scale,
+        "camera_info": [config.left_info_topic, config.right_info_topic],
+        "criteria": list(config.criteria),
+        "measures": list(config.measures or []),
+        "missing": config.missing,
+        "delta": config.delta,
+        "mu": config.mu,
+        "tolerance_ns": config.tolerance_ns,
+        "lateness_ns": config.lateness_ns,
+    }
+    warm_up(config)
+    session = LiveSession(
+        domain,
+        config,
+        summary_config,
+        record,
+        alarms=alarms,
+        queue_size=args.queue_size,
+        on_error=_warn,
+    )
+    stop = threading.Event()
+    previous = install_stop_handlers(stop)
+    try:
+        session.start()
+        print(
+            f"dispeval live: listening on {environment.describe(uri, domain)}: "
+            f"{len(config.methods)} method(s) against {config.gt_topic}; publishing "
+            f"{SCORES_TOPIC}, {GROUPS_TOPIC}; results in {args.out} (Ctrl-C to stop)",
+            file=sys.stderr,
+            flush=True,
+        )
+        _run_until_stopped(session, stop, args.duration, quiet=args.quiet)
+        print("dispeval live: stopping: scoring what arrived, writing results…", file=sys.stderr)
+        summary = session.stop()
+    finally:
+        session.stop()
+        restore_handlers(previous)
+    return _report(session, summary, args.out)
+
+
+def _warn(message: str) -> None:
+    print(f"dispeval live: {message}", file=sys.stderr, flush=True)
+
+
+def install_stop_handlers(stop: threading.Event) -> dict[int, Any]:
+    """SIGINT and SIGTERM set ``stop`` (a clean end); a second SIGINT interrupts at once."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        if stop.is_set() and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        stop.set()
+
+    return {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
+def restore_handlers(previous: dict[int, Any]) -> None:
+    """Put back the handlers :func:`install_stop_handlers` replaced."""
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
+
+
+def _run_until_stopped(
+    session: Any, stop: threading.Event, duration: float | None, *, quiet: bool
+) -> None:
+    """Wait for a signal or the duration, drawing the live line (frames/s) meanwhile."""
+    started = last_time = time.monotonic()
+    last_frames = 0
+    tty = sys.stderr.isatty()
+    period = 1.0 if tty else 10.0
+    next_line = started + period
+    while True:
+        now = time.monotonic()
+        end = None if duration is None else started + duration
+        if end is not None and now >= end:
+            break
+        timeout = next_line - now if end is None else min(next_line, end) - now
+        if stop.wait(max(0.0, timeout)):
+            break
+        now = time.monotonic()
+        if now < next_line:
+            continue
+        next_line = now + period
+        if quiet:
+            continue
+        status = session.status()
+        rate = (status.frames - last_frames) / max(now - last_time, 1e-9)
+        last_frames, last_time = status.frames, now
+        text = (
+            f"dispeval live: {status.frames} frames  {rate:.1f} frames/s  "
+            f"{status.messages} messages  dropped {status.dropped} (queue {status.queue_drops})  "
+            f"{status.sequence}"
+        )
+        if status.silent:
+            text += f"  no publisher on {', '.join(status.silent)}"
+        if tty:
+            sys.stderr.write("\r" + text + "   ")
+        else:
+            sys.stderr.write(text + "\n")
+        sys.stderr.flush()
+    if tty and not quiet:
+        sys.stderr.write("\n")
+
+
+def _report(session: Any, summary: Any, out: Path) -> int:
+    from dispeval_ros.io.store import ResultsStore
+
+    status = session.status()
+    print(
+        f"this run: {status.frames} frames scored and published, {status.stored} stored, "
+        f"{status.messages} messages received, {status.queue_drops} frame(s) dropped by a full "
+        f"queue" + (f", {status.restarts} stream restart(s)" if status.restarts else "")
+    )
+    if not session.complete:
+        print(
+            "dispeval live: warning: the summarizer did not get every published frame in time",
+            file=sys.stderr,
+        )
+    if summary is None:
+        print(f"no frame was scored; {out} holds no frames")
+        return 0
+    with ResultsStore.open(out) as store:
+        problems = store.problems()
+    print(f"results: {out / 'results.sqlite'} ({out / 'frames.csv'}, {out / 'summary.json'})")
+    print(run_summary_text(summary, problems))
+    return 0

@@ -1,0 +1,264 @@
+"""The live evaluator on DDS: ROS 2 topics in, scores out, as the rclpy evaluator node does.
+
+Subscriptions (best-effort, keep-last: REP 2003 sensor data, so any publisher matches) feed
+:class:`~dispeval_ros.live.runner.LiveEvaluator` from one reader thread; every scored frame is
+published
+
+- on ``/dispeval/scores`` as a ``diagnostic_msgs/msg/DiagnosticArray`` (``header.stamp`` = the
+  ground-truth stamp; one ``DiagnosticStatus`` per method from
+  :func:`~dispeval_ros.live.vectors.scores_status`, with the exact sums a summarizer needs;
+  a frame's problems as ERROR statuses without values, named after the method or
+  ``ground_truth``), reliable;
+- on ``/dispeval/<method>/vector`` as a ``std_msgs/msg/Float64MultiArray`` (the labelled
+  numbers of :func:`~dispeval_ros.live.vectors.score_vector`).
+
+A ground-truth stamp that jumps back by more than ``tolerance + lateness`` (and at least 1 s)
+means the stream started again (a looping player, a robot restarted with sim time): the frames
+waiting are scored, and a fresh join starts (with the latest CameraInfo pair), so the new pass
+is not dropped as late.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+
+from dispeval_ros.core import Camera
+from dispeval_ros.dds.diagnostics import diagnostic_array, vector_message
+from dispeval_ros.dds.transport import DdsTransport, Received
+from dispeval_ros.dds.wire import (
+    DIAGNOSTIC_ARRAY,
+    FLOAT64_MULTI_ARRAY,
+    RESULTS,
+    SCORES_TOPIC,
+    SENSOR_DATA,
+    QosProfile,
+    vector_topic,
+)
+from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.live.core import CoreConfig, FrameResult, MethodCounts
+from dispeval_ros.live.runner import LiveEvaluator
+from dispeval_ros.live.vectors import (
+    ERROR,
+    AlarmThresholds,
+    StatusRecord,
+    score_vector,
+    scores_status,
+    vector_labels,
+)
+
+GROUND_TRUTH = "ground_truth"
+VECTOR_QOS = QosProfile(reliable=True, depth=10)
+MIN_RESTART_NS = 1_000_000_000
+
+
+def warm_up(config: CoreConfig) -> None:
+    """Score one small synthetic frame, so compiled kernels are loaded before frames arrive."""
+    evaluator = config.evaluator()
+    rows, cols = np.mgrid[0:48, 0:64]
+    gt = (8.0 + 0.2 * cols + 0.1 * rows).astype(np.float32)
+    estimate = gt + np.float32(0.3)
+    estimate[::7, ::5] = -1.0
+    camera = Camera(f=100.0, baseline=0.5)
+    reference = evaluator.reference(gt, camera)
+    evaluator.score(reference, estimate)
+
+
+class DdsEvaluator:
+    """Subscribe to the configured topics, score, publish scores and vectors.
+
+    One thread takes and decodes the messages, one scores (the live evaluator's), one
+    publishes, so scoring never waits for serialisation. ``on_result`` (optional) sees every
+    published :class:`FrameResult` (in the publishing thread).
+    """
+
+    def __init__(
+        self,
+        transport: DdsTransport,
+        config: CoreConfig,
+        *,
+        alarms: AlarmThresholds | None = None,
+        queue_size: int = 4,
+        subscription: QosProfile = SENSOR_DATA,
+        on_result: Callable[[FrameResult], None] | None = None,
+        on_error: Callable[[str], None] | None = None,
+    ) -> None:
+        self.transport = transport
+        self.config = config
+        self.alarms = alarms
+        self.queue_size = queue_size
+        self.on_result = on_result
+        self.typestore = transport.typestore
+        self._restart_ns = max(MIN_RESTART_NS, config.tolerance_ns + config.lateness_ns)
+        self._lock = threading.Lock()
+        self._labels: dict[str, list[str]] = {}
+        self._past: dict[str, MethodCounts] = {m: MethodCounts() for m in config.methods}
+        self._past_queue_drops = 0
+        self._past_latencies: list[float] = []
+        self._newest_gt: int | None = None
+        self._info_topics = {config.left_info_topic, config.right_info_topic} - {None}
+        self._infos: dict[str, object] = {}
+        self.published = 0
+        self.publish_errors = 0
+        self.restarts = 0
+        self.scores_writer = transport.writer(SCORES_TOPIC, DIAGNOSTIC_ARRAY, RESULTS)
+        self.vector_writers = {
+            method: transport.writer(vector_topic(method), FLOAT64_MULTI_ARRAY, VECTOR_QOS)
+            for method in config.methods
+        }
+        self._outbox: deque[FrameResult] = deque()
+        self._outbox_ready = threading.Condition()
+        self._outbox_closed = False
+        self._publisher = threading.Thread(
+            target=self._publish_loop, name="dispeval-publish", daemon=True
+        )
+        self._publisher.start()
+        self.live = self._new_live()
+        self.thread = transport.reader_thread("evaluator", on_error)
+        self.on_error = self.thread.on_error
+        self.readers = [
+            transport.reader(topic, msgtype, subscription)
+            for topic, msgtype in config.topics.items()
+        ]
+        for reader in self.readers:
+            self.thread.add(reader, self._push)
+
+    def _new_live(self) -> LiveEvaluator:
+        return LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size)
+
+    def start(self) -> None:
+        """Start taking messages."""
+        self.thread.start()
+
+    # -- input (the reader thread) -----------------------------------------------------------
+
+    def _push(self, received: Received) -> None:
+        if received.topic == self.config.gt_topic:
+            stamp = stamp_ns(received.msg.header)
+            newest = self._newest_gt
+            if newest is not None and stamp < newest - self._restart_ns:
+                self._restart()
+                newest = None
+            self._newest_gt = stamp if newest is None else max(newest, stamp)
+        elif received.topic in self._info_topics:
+            self._infos[received.topic] = received.msg
+        self.live.push(received.topic, received.msg)
+
+    def _restart(self) -> None:
+        """Score what the old pass holds and start a fresh join."""
+        old = self.live
+        old.stop(flush=True)
+        with self._lock:
+            for method, counts in old.counts().items():
+                past = self._past[method]
+                past.matched += counts.matched
+                past.unmatched += counts.unmatched
+                past.dropped += counts.dropped
+                past.failed += counts.failed
+            self._past_queue_drops += old.stats.queue_drops
+            self._past_latencies.extend(old.stats.latencies)
+            self.live = self._new_live()
+            self.restarts += 1
+        for topic, msg in self._infos.items():  # the camera is the same in the new pass
+            self.live.push(topic, msg)
+
+    # -- output (the scoring thread) ---------------------------------------------------------
+
+    def _on_result(self, result: FrameResult) -> None:
+        """Hand a result to the publishing thread, so scoring goes on with the next frame."""
+        with self._outbox_ready:
+            self._outbox.append(result)
+            self._outbox_ready.notify()
+
+    def _publish_loop(self) -> None:
+        while True:
+            with self._outbox_ready:
+                while not self._outbox and not self._outbox_closed:
+                    self._outbox_ready.wait()
+                if not self._outbox:
+                    return
+                result = self._outbox.popleft()
+            try:
+                self.publish(result)
+            except Exception as error:  # never let a transport problem end publishing
+                self.publish_errors += 1
+                if self.publish_errors == 1 or self.publish_errors % 100 == 0:
+                    self.on_error(f"publishing the scores of {result.stamp} failed: {error}")
+                continue
+            if self.on_result is not None:
+                self.on_result(result)
+
+    def records(self, result: FrameResult) -> list[StatusRecord]:
+        """The statuses of one frame: one per scored method, one ERROR per problem."""
+        records = [
+            scores_status(
+                method,
+                self.config.methods[method],
+                scores,
+                self.alarms,
+                result.estimate_stamps.get(method),
+            )
+            for method, scores in result.scores.items()
+        ]
+        for method, message in result.problems:
+            topic = self.config.methods[method] if method else self.config.gt_topic
+            records.append(StatusRecord(method or GROUND_TRUTH, topic, ERROR, message, ()))
+        return records
+
+    def publish(self, result: FrameResult) -> None:
+        """Publish one frame's scores and every method's vector."""
+        self.scores_writer.publish(
+            diagnostic_array(self.typestore, result.stamp, self.records(result))
+        )
+        for method, scores in result.scores.items():
+            labels = self._labels.get(method)
+            if labels is None:
+                labels = vector_labels(scores.criteria, scores.measures)
+                self._labels[method] = labels
+            self.vector_writers[method].publish(
+                vector_message(self.typestore, labels, score_vector(scores, labels))
+            )
+        self.published += 1
+
+    # -- state and shutdown ------------------------------------------------------------------
+
+    def counts(self) -> dict[str, MethodCounts]:
+        """Matched / unmatched / dropped / failed per method, over every pass."""
+        with self._lock:
+            current = self.live.counts()
+            return {
+                method: MethodCounts(
+                    past.matched + current[method].matched,
+                    past.unmatched + current[method].unmatched,
+                    past.dropped + current[method].dropped,
+                    past.failed + current[method].failed,
+                )
+                for method, past in self._past.items()
+            }
+
+    @property
+    def queue_drops(self) -> int:
+        """Frames dropped because scoring could not keep up."""
+        return self._past_queue_drops + self.live.stats.queue_drops
+
+    def latencies(self) -> list[float]:
+        """Seconds from a frame's last message to its scores, every pass."""
+        return [*self._past_latencies, *self.live.stats.latencies]
+
+    def received(self) -> int:
+        """Messages taken from DDS so far."""
+        return self.thread.received
+
+    def stop(self, flush: bool = True) -> None:
+        """Stop listening; with ``flush``, score and publish everything that arrived."""
+        self.thread.stop(drain=flush)
+        self.live.stop(flush=flush)
+        with self._outbox_ready:
+            if not flush:
+                self._outbox.clear()
+            self._outbox_closed = True
+            self._outbox_ready.notify_all()
+        self._publisher.join()

@@ -1,0 +1,645 @@
+"""Read a results database into the compact, JSON-able structure the HTML report embeds.
+
+The browser must recompute every objective exactly as Python does, so the report carries the
+float64 accumulator rows (``sums``) of every (sequence, frame, method, criterion), not rounded
+measure values: sequence totals are then sums of sums in frame order (bit-identical to
+:meth:`ResultsStore.sequence_scores`) and every measure is derived from them by a small
+*recipe* (numerator field, denominator field, scale) that mirrors
+:func:`dispeval_ros.core.measures.measure_from_sums`.
+
+Size: the rows form a dense ``(frame, criterion, method)`` grid. Each accumulator field is one
+column: all-zero columns (unused bad-x thresholds) are dropped, integral columns (counts) are
+stored as the smallest unsigned integer type that holds them, the others as float64. Columns
+are byte-shuffled (all first bytes, then all second bytes, …: exponents and high bytes
+compress well), deflated with zlib and base64-encoded; the browser inflates them with
+``DecompressionStream``. A 100-method × 1000-frame × 3-criterion database gives about 18 MB.
+
+It also holds the Python reference of the in-browser models: :func:`selection_objectives`
+builds the method × objective matrix of a :class:`Selection` from the database alone (through
+``ResultsStore`` queries), the way ``dispeval_ros.offline.summary`` does, and
+:func:`evaluate_selection` runs :func:`dispeval_ros.core.models.evaluate_models` on it.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import zlib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
+
+import numpy as np
+
+from dispeval_ros.core import kernels as k
+from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, bad_threshold, quantile_level
+from dispeval_ros.core.models import ModelResult, evaluate_models
+from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.io.jsonio import json_safe
+from dispeval_ros.io.store import ResultsStore
+
+if TYPE_CHECKING:
+    from dispeval_ros.live.core import CoreConfig
+
+FORMAT_VERSION = 1
+GRANULARITIES = ("sequence", "frame")
+DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
+MAX_PROBLEMS = 2000
+"""Problems listed in the report (the total is always given)."""
+DEFAULT_THUMBNAILS = 4
+THUMBNAIL_WIDTH = 320
+ERROR_RANGE_PX = 4.0
+"""Error maps: turbo colour map from 0 to this many pixels (as ``colour_error``)."""
+
+_UINT_TYPES = (("u8", np.uint8, 2**8), ("u16", np.uint16, 2**16), ("u32", np.uint32, 2**32))
+_ITEMSIZE = {"u8": 1, "u16": 2, "u32": 4, "f64": 8, "zero": 0}
+_DTYPES: dict[str, np.dtype[Any]] = {
+    "u8": np.dtype("<u1"),
+    "u16": np.dtype("<u2"),
+    "u32": np.dtype("<u4"),
+    "f64": np.dtype("<f8"),
+}
+
+# -- measures as recipes -------------------------------------------------------------------
+
+_RATIOS = {
+    # name: (numerator field, denominator field, scale) — as measures._FROM_SUMS
+    "bmp": (k.FIELD_BAD, k.FIELD_EVAL, 100.0),
+    "mae": (k.FIELD_SUM_E, k.FIELD_EVAL, 1.0),
+    "mse": (k.FIELD_SUM_E2, k.FIELD_EVAL, 1.0),
+    "mre": (k.FIELD_SUM_REL, k.FIELD_EVAL, 1.0),
+    "sze_mean": (k.FIELD_SZE, k.FIELD_EVAL, 1.0),
+    "bmpre_mean": (k.FIELD_BMPRE, k.FIELD_EVAL, 1.0),
+    "d1": (k.FIELD_D1, k.FIELD_EVAL, 100.0),
+    "density": (k.FIELD_VALID, k.FIELD_N, 1.0),
+}
+_TOTALS = {"bmp_count": k.FIELD_BAD, "sze": k.FIELD_SZE, "bmpre": k.FIELD_BMPRE}
+
+
+def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
+    """How the browser derives measure ``name`` from a row of sums (or reads it stored).
+
+    Kinds: ``ratio`` (``scale * sums[num] / sums[den]``, NaN unless ``sums[den] > 0``),
+    ``sqrt_ratio`` (the root of that ratio), ``total`` (``sums[num]``) and ``stored`` (a
+    per-frame quantile; not summable, NaN over sequences). ``higher`` marks
+    higher-is-better measures, negated in objectives.
+    """
+    recipe: dict[str, Any] = {"name": name, "higher": name in HIGHER_IS_BETTER}
+    if name in _RATIOS:
+        num, den, scale = _RATIOS[name]
+        recipe.update(kind="ratio", num=num, den=den, scale=scale)
+    elif name == "rmse":
+        recipe.update(kind="sqrt_ratio", num=k.FIELD_SUM_E2, den=k.FIELD_EVAL, scale=1.0)
+    elif name in _TOTALS:
+        recipe.update(kind="total", num=_TOTALS[name], den=-1, scale=1.0)
+    elif bad_threshold(name) is not None:
+        hits = np.flatnonzero(np.asarray(thresholds)[1:] == bad_threshold(name))
+        if hits.size == 0:
+            raise ConfigurationError(f"measure '{name}' has no threshold column in the results")
+        recipe.update(kind="ratio", num=k.FIELD_BAD + int(hits[0]) + 1, den=k.FIELD_EVAL)
+        recipe["scale"] = 100.0
+    elif quantile_level(name) is not None:
+        recipe.update(kind="stored", num=-1, den=-1, scale=1.0)
+    else:
+        raise ConfigurationError(f"measure '{name}' is not known to the report")
+    return recipe
+
+
+def recipe_values(
+    recipe: Mapping[str, Any], sums: np.ndarray, stored: np.ndarray | None = None
+) -> np.ndarray:
+    """Vectorised :func:`measure_recipe` evaluation over rows of sums (``(..., fields)``)."""
+    kind = recipe["kind"]
+    shape = sums.shape[:-1]
+    if kind == "stored":
+        return np.full(shape, np.nan) if stored is None else np.asarray(stored, np.float64)
+    numerator = sums[..., recipe["num"]]
+    if kind == "total":
+        return numerator.astype(np.float64, copy=True)
+    denominator = sums[..., recipe["den"]]
+    result = np.full(shape, np.nan)
+    ok = denominator > 0
+    result[ok] = recipe["scale"] * numerator[ok] / denominator[ok]
+    if kind == "sqrt_ratio":
+        result = np.sqrt(result)
+    return result
+
+
+# -- selections and the Python reference of the in-browser models --------------------------
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What the user picked: sequences (and frames), criteria, measures, methods, granularity.
+
+    Lists are filtered in database order whatever their order here. ``frames`` maps a
+    sequence to 0-based indices into :meth:`ResultsStore.stamps` (absent: every frame).
+    """
+
+    sequences: tuple[str, ...]
+    criteria: tuple[str, ...]
+    measures: tuple[str, ...]
+    methods: tuple[str, ...]
+    granularity: str = "sequence"
+    frames: Mapping[str, Sequence[int]] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form the browser's ``dispevalModels(selection)`` takes."""
+        return {
+            "sequences": list(self.sequences),
+            "criteria": list(self.criteria),
+            "measures": list(self.measures),
+            "methods": list(self.methods),
+            "granularity": self.granularity,
+            "frames": None
+            if self.frames is None
+            else {name: [int(i) for i in indices] for name, indices in self.frames.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, document: Mapping[str, Any]) -> Selection:
+        """Inverse of :meth:`to_dict`."""
+        frames = document.get("frames")
+        return cls(
+            sequences=tuple(document["sequences"]),
+            criteria=tuple(document["criteria"]),
+            measures=tuple(document["measures"]),
+            methods=tuple(document["methods"]),
+            granularity=str(document.get("granularity", "sequence")),
+            frames=None if frames is None else {str(s): list(v) for s, v in frames.items()},
+        )
+
+
+def overlapping_criteria(store: ResultsStore) -> set[str]:
+    """Criteria flagged as overlapping (legacy Middlebury) anywhere in the results."""
+    found: set[str] = set()
+    for sequence in store.sequences():
+        for scores in store.sequence_scores(sequence).values():
+            found.update(scores.overlapping)
+    return found
+
+
+def default_selection(store: ResultsStore, overlapping: Iterable[str] | None = None) -> Selection:
+    """What the summary compares, as the report opens.
+
+    Every sequence, frame and method, the partition criteria (overlapping legacy criteria
+    left out), ``sze`` and ``bmpre`` per sequence.
+    """
+    measures = store.measures()
+    chosen = [m for m in DEFAULT_OBJECTIVE_MEASURES if m in measures] or measures[:1]
+    skip = set(overlapping_criteria(store) if overlapping is None else overlapping)
+    return Selection(
+        sequences=tuple(store.sequences()),
+        criteria=tuple(c for c in store.criteria() if c not in skip),
+        measures=tuple(chosen),
+        methods=tuple(store.methods()),
+    )
+
+
+def _chosen_stamps(
+    store: ResultsStore, sequence: str, frames: Mapping[str, Sequence[int]] | None
+) -> list[int]:
+    stamps = store.stamps(sequence)
+    if frames is None or sequence not in frames:
+        return stamps
+    indices = sorted({int(i) for i in frames[sequence] if 0 <= int(i) < len(stamps)})
+    return [stamps[i] for i in indices]
+
+
+def common_stamps(
+    store: ResultsStore,
+    sequence: str,
+    methods: Sequence[str],
+    frames: Mapping[str, Sequence[int]] | None = None,
+) -> list[int]:
+    """The chosen stamps where every chosen method present in the sequence has a row.
+
+    With every method chosen this is :meth:`ResultsStore.common_stamps` (the frames every
+    method stored for the sequence delivered). Methods with no frame at all in the sequence
+    do not empty it: their objectives there are NaN (worst).
+    """
+    chosen = _chosen_stamps(store, sequence, frames)
+    if set(methods) == set(store.methods()):
+        allowed = set(chosen)
+        return [s for s in store.common_stamps(sequence) if s in allowed]
+    delivered = []
+    for method in methods:
+        stamps = {cast(int, row["stamp"]) for row in store.frame_rows(sequence, method)}
+        if stamps:
+            delivered.append(stamps)
+    if not delivered:
+        return []
+    return [s for s in chosen if all(s in stamps for stamps in delivered)]
+
+
+def _ordered(chosen: Iterable[str], order: Sequence[str]) -> list[str]:
+    wanted = set(chosen)
+    return [name for name in order if name in wanted]
+
+
+def _value(scores: Mapping[str, Any], method: str, criterion: str, measure: str) -> float:
+    if method not in scores or criterion not in scores[method]:
+        return math.nan
+    value = float(scores[method][criterion][measure])
+    return -value if measure in HIGHER_IS_BETTER else value
+
+
+def selection_objectives(
+    store: ResultsStore, selection: Selection
+) -> tuple[list[str], list[str], np.ndarray]:
+    """Methods, objective names and the methods × objectives matrix of a selection.
+
+    Per selected sequence (database order), on its common stamps: per (criterion, measure)
+    the measure of the summed sums (``granularity='sequence'``), or per frame, per
+    (criterion, measure) the frame's measure (``'frame'``). A criterion no chosen method has
+    there (no such points) gives no objective, as in the summary; a method missing a
+    criterion others have is NaN there. Higher-is-better measures (density) are negated. Names as the summary:
+    ``criterion/measure @sequence`` and ``criterion/measure @sequence:stamp``.
+    """
+    if selection.granularity not in GRANULARITIES:
+        raise ConfigurationError(
+            f"granularity must be one of {', '.join(GRANULARITIES)}, got '{selection.granularity}'"
+        )
+    methods = _ordered(selection.methods, store.methods())
+    criteria = _ordered(selection.criteria, store.criteria())
+    measures = _ordered(selection.measures, store.measures())
+    names: list[str] = []
+    columns: list[list[float]] = []
+    for sequence in _ordered(selection.sequences, store.sequences()):
+        stamps = common_stamps(store, sequence, methods, selection.frames)
+        if not stamps or not methods:
+            continue
+        if selection.granularity == "sequence":
+            parts = [(f" @{sequence}", store.sequence_scores(sequence, stamps=stamps))]
+        else:
+            parts = [
+                (f" @{sequence}:{stamp}", store.frame_scores(sequence, stamp)) for stamp in stamps
+            ]
+        for label, scores in parts:
+            for criterion in criteria:
+                if not any(m in scores and criterion in scores[m] for m in methods):
+                    continue  # no such points there (e.g. no boundary in a frame)
+                for measure in measures:
+                    names.append(f"{criterion}/{measure}{label}")
+                    columns.append([_value(scores, m, criterion, measure) for m in methods])
+    matrix = np.array(columns, dtype=np.float64).T if columns else np.empty((len(methods), 0))
+    return methods, names, matrix.reshape(len(methods), len(names))
+
+
+def evaluate_selection(
+    store: ResultsStore, selection: Selection
+) -> tuple[list[str], list[str], np.ndarray, ModelResult | None]:
+    """:func:`selection_objectives` and the models on it (None without methods or objectives)."""
+    methods, names, matrix = selection_objectives(store, selection)
+    if not methods or not names:
+        return methods, names, matrix, None
+    return methods, names, matrix, evaluate_models(methods, matrix)
+
+
+# -- the compact arrays ----------------------------------------------------------------------
+
+
+def _column_type(values: np.ndarray) -> str:
+    if not np.any(values) and not np.any(np.isnan(values)):
+        return "zero"
+    if np.all(np.isfinite(values)) and np.all(values >= 0) and np.all(values == np.floor(values)):
+        top = float(values.max())
+        for name, _, limit in _UINT_TYPES:
+            if top < limit:
+                return name
+    return "f64"
+
+
+def _shuffled(values: np.ndarray, kind: str) -> bytes:
+    """The column's little-endian bytes, byte-plane by byte-plane (all first bytes first)."""
+    raw = np.ascontiguousarray(values.astype(_DTYPES[kind]))
+    size = _ITEMSIZE[kind]
+    if size == 1:
+        return raw.tobytes()
+    return np.ascontiguousarray(raw.view(np.uint8).reshape(-1, size).T).tobytes()
+
+
+def _unshuffled(buffer: bytes, offset: int, rows: int, kind: str) -> np.ndarray:
+    size = _ITEMSIZE[kind]
+    planes = np.frombuffer(buffer, np.uint8, rows * size, offset).reshape(size, rows)
+    return np.ascontiguousarray(planes.T).view(_DTYPES[kind]).reshape(rows).astype(np.float64)
+
+
+def encode_columns(columns: Sequence[tuple[str, np.ndarray]], level: int = 6) -> dict[str, Any]:
+    """Encode named 1-D columns of equal length: types, zlib of the shuffled bytes, base64."""
+    rows = int(columns[0][1].size) if columns else 0
+    described, chunks = [], []
+    for name, column in columns:
+        values = np.asarray(column, dtype=np.float64).ravel()
+        kind = _column_type(values)
+        described.append({"name": name, "type": kind})
+        if kind != "zero":
+            chunks.append(_shuffled(values, kind))
+    payload = zlib.compress(b"".join(chunks), level)
+    return {
+        "rows": rows,
+        "encoding": "zlib+base64",
+        "columns": described,
+        "payload": base64.b64encode(payload).decode("ascii"),
+    }
+
+
+def decode_columns(encoded: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Inverse of :func:`encode_columns` (float64 columns), as the browser decodes them."""
+    rows = int(encoded["rows"])
+    buffer = zlib.decompress(base64.b64decode(encoded["payload"]))
+    offset = 0
+    result: dict[str, np.ndarray] = {}
+    for column in encoded["columns"]:
+        kind = column["type"]
+        if kind == "zero":
+            result[column["name"]] = np.zeros(rows)
+            continue
+        result[column["name"]] = _unshuffled(buffer, offset, rows, kind)
+        offset += rows * _ITEMSIZE[kind]
+    if offset != len(buffer):
+        raise InputError("report payload has trailing bytes; it is damaged")
+    return result
+
+
+def decode_arrays(data: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The report's grid as arrays, decoded as the browser decodes it.
+
+    ``sums`` (frames, criteria, methods, fields), ``present`` (frames, criteria, methods) and
+    ``stored:NAME`` (frames, criteria, methods) per stored quantile measure.
+    """
+    arrays = data["arrays"]
+    shape = (arrays["frames"], arrays["criteria"], arrays["methods"])
+    columns = decode_columns(arrays)
+    fields = data["fields"]
+    sums = np.stack([columns[f"sum:{name}"] for name in fields], axis=-1)
+    result = {
+        "sums": sums.reshape((*shape, len(fields))),
+        "present": columns["present"].reshape(shape).astype(bool),
+    }
+    for name in arrays.get("stored", []):
+        result[f"stored:{name}"] = columns[f"stored:{name}"].reshape(shape)
+    return result
+
+
+# -- the report data -------------------------------------------------------------------------
+
+
+def _grid(
+    store: ResultsStore, sequences: list[str], methods: list[str], criteria: list[str]
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, Any]]:
+    """Every stored row in a dense (frame, criterion, method) grid, plus what the rows say."""
+    stamps = {s: store.stamps(s) for s in sequences}
+    frames = sum(len(v) for v in stamps.values())
+    shape = (frames, len(criteria), len(methods))
+    sums = np.zeros((*shape, len(SUM_FIELDS)), dtype=np.float64)
+    present = np.zeros(shape, dtype=np.uint8)
+    stored_names = [m for m in store.measures() if quantile_level(m) is not None]
+    stored = {name: np.full(shape, np.nan) for name in stored_names}
+    method_at = {m: i for i, m in enumerate(methods)}
+    criterion_at = {c: i for i, c in enumerate(criteria)}
+    overlapping: set[str] = set()
+    relative = dict.fromkeys(methods, False)
+    thresholds: np.ndarray | None = None
+    policy = ""
+    frame = 0
+    for sequence in sequences:
+        for stamp in stamps[sequence]:
+            for method, scores in store.frame_scores(sequence, stamp).items():
+                m = method_at[method]
+                relative[method] = relative[method] or bool(scores.relative)
+                overlapping.update(scores.overlapping)
+                thresholds, policy = scores.thresholds, scores.policy
+                for row, criterion in enumerate(scores.criteria):
+                    c = criterion_at[criterion]
+                    sums[frame, c, m] = scores.sums[row]
+                    present[frame, c, m] = 1
+                    for name in stored_names:
+                        value = scores.quantiles.get(criterion, {}).get(name, math.nan)
+                        stored[name][frame, c, m] = value
+            frame += 1
+    info = {
+        "overlapping": overlapping,
+        "relative": [relative[m] for m in methods],
+        "thresholds": thresholds,
+        "policy": policy,
+    }
+    return sums, present, stored, info
+
+
+def build_report_data(
+    store: ResultsStore,
+    *,
+    title: str | None = None,
+    thumbnails: Mapping[str, Any] | None = None,
+    level: int = 6,
+) -> dict[str, Any]:
+    """The JSON-able report data of a results database (see the module docstring)."""
+    sequences, methods, criteria = store.sequences(), store.methods(), store.criteria()
+    measures = store.measures()
+    if not methods or not measures:
+        raise InputError(f"{store.path} holds no scored frame yet; nothing to report")
+    sums, present, stored, info = _grid(store, sequences, methods, criteria)
+    thresholds = info["thresholds"] if info["thresholds"] is not None else np.zeros(1)
+    columns: list[tuple[str, np.ndarray]] = [("present", present.ravel())]
+    columns += [(f"sum:{name}", sums[..., i].ravel()) for i, name in enumerate(SUM_FIELDS)]
+    columns += [(f"stored:{name}", values.ravel()) for name, values in stored.items()]
+    arrays = encode_columns(columns, level)
+    arrays.update(
+        frames=int(sums.shape[0]),
+        criteria=len(criteria),
+        methods=len(methods),
+        layout="frame, criterion, method (method fastest)",
+        stored=list(stored),
+    )
+    sequence_list = []
+    for sequence in sequences:
+        source, seq_info = store.sequence_info(sequence)
+        stamps = store.stamps(sequence)
+        first = stamps[0] if stamps else 0
+        sequence_list.append(
+            {
+                "name": sequence,
+                "source": source,
+                "info": json_safe(seq_info),
+                "stamps": [str(s) for s in stamps],
+                "times": [(s - first) / 1e9 for s in stamps],
+                "counts": [
+                    [method, c.matched, c.unmatched, c.dropped, c.failed]
+                    for method, c in store.match_counts(sequence).items()
+                ],
+            }
+        )
+    problems = store.problems()
+    overlapping = info["overlapping"]
+    defaults = default_selection(store, overlapping).to_dict()
+    return {
+        "format": FORMAT_VERSION,
+        "title": title or f"dispeval report: {store.path.parent.name or store.path.name}",
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "source": str(store.path),
+        "config": json_safe(store.config()),
+        "policy": info["policy"],
+        "thresholds": json_safe([float(t) for t in thresholds]),
+        "fields": list(SUM_FIELDS),
+        "sequences": sequence_list,
+        "methods": methods,
+        "relative": info["relative"],
+        "criteria": [{"name": c, "overlapping": c in overlapping} for c in criteria],
+        "measures": [measure_recipe(m, thresholds) for m in measures],
+        "problems": {
+            "total": len(problems),
+            "shown": [
+                [p.sequence, None if p.stamp is None else str(p.stamp), p.method, p.message]
+                for p in problems[:MAX_PROBLEMS]
+            ],
+        },
+        "arrays": arrays,
+        "defaults": {**defaults, "model": "astar"},
+        "thumbnails": json_safe(thumbnails) if thumbnails else None,
+    }
+
+
+# -- error-map thumbnails from the bags -----------------------------------------------------
+
+
+def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
+    """The evaluation core's configuration from a run's stored configuration."""
+    from dispeval_ros.live.core import CoreConfig
+
+    methods = config.get("methods")
+    gt_topic = config.get("gt_topic")
+    if not isinstance(methods, Mapping) or not isinstance(gt_topic, str):
+        raise InputError(
+            "the results do not record the method and ground-truth topics, so the bag frames "
+            "cannot be scored again for thumbnails (use results written by 'dispeval bag')"
+        )
+    left, right = (config.get("camera_info") or [None, None])[:2]
+    options: dict[str, Any] = {}
+    for key in ("gt_kind", "gt_scale", "missing", "delta", "mu", "tolerance_ns", "lateness_ns"):
+        if config.get(key) is not None:
+            options[key] = config[key]
+    if config.get("criteria"):
+        options["criteria"] = tuple(config["criteria"])
+    return CoreConfig(
+        methods=dict(methods),
+        gt_topic=gt_topic,
+        left_info_topic=left,
+        right_info_topic=right,
+        **options,
+    )
+
+
+def _png_uri(rgb: np.ndarray, max_width: int) -> str:
+    import cv2
+
+    height, width = rgb.shape[:2]
+    if width > max_width:
+        size = (max_width, max(1, round(height * max_width / width)))
+        rgb = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+    ok, encoded = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:  # pragma: no cover - OpenCV always encodes RGB8
+        raise InputError("cannot encode a thumbnail as PNG")
+    return "data:image/png;base64," + base64.b64encode(encoded.tobytes()).decode("ascii")
+
+
+def _legend_uri() -> str:
+    import cv2
+
+    ramp = np.tile(np.arange(256, dtype=np.uint8), (14, 1))
+    rgb = cv2.cvtColor(cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO), cv2.COLOR_BGR2RGB)
+    return _png_uri(rgb, 256)
+
+
+def _spread(stamps: Sequence[int], count: int) -> list[int]:
+    if count <= 0 or not stamps:
+        return []
+    if count >= len(stamps):
+        return list(stamps)
+    picks = np.linspace(0, len(stamps) - 1, count).round().astype(int)
+    return [stamps[i] for i in sorted(set(picks.tolist()))]
+
+
+def _match_bags(store: ResultsStore, bags: Sequence[Path]) -> dict[str, Path]:
+    from dispeval_ros.offline.bag_eval import sequence_names
+
+    sequences = store.sequences()
+    sources = {}
+    for sequence in sequences:
+        source, _ = store.sequence_info(sequence)
+        if source:
+            sources[Path(source).resolve()] = sequence
+    matched: dict[str, Path] = {}
+    for bag, name in zip(bags, sequence_names(list(bags)), strict=True):
+        found = sources.get(Path(bag).resolve()) or (name if name in sequences else None)
+        if found is None:
+            raise InputError(
+                f"{bag}: matches no sequence of the results (sequences: {', '.join(sequences)})"
+            )
+        matched[found] = Path(bag)
+    return matched
+
+
+def error_thumbnails(
+    store: ResultsStore,
+    bags: Sequence[Path],
+    count: int = DEFAULT_THUMBNAILS,
+    config: CoreConfig | None = None,
+    max_width: int = THUMBNAIL_WIDTH,
+) -> dict[str, Any] | None:
+    """Error-map thumbnails of ``count`` frames spread over the sequences of ``bags``.
+
+    The results database keeps no error maps, so the chosen frames (evenly spaced over each
+    sequence's common frames) are read from the bag again, joined and scored by
+    :class:`~dispeval_ros.live.core.EvaluationCore` with ``error_images=True`` and rendered by
+    :func:`~dispeval_ros.live.images.colour_error` (turbo, 0–4 px, criterion borders white).
+    """
+    from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.live.core import EvaluationCore
+    from dispeval_ros.live.images import colour_error
+
+    if count <= 0 or not bags:
+        return None
+    matched = _match_bags(store, bags)
+    config = config or core_config_from_run(store.config())
+    order = [s for s in store.sequences() if s in matched]
+    shares = [count // len(order) + (i < count % len(order)) for i in range(len(order))]
+    margin = config.tolerance_ns + config.lateness_ns
+    frames: list[dict[str, Any]] = []
+    for sequence, share in zip(order, shares, strict=True):
+        all_stamps = store.stamps(sequence)
+        wanted = _spread(store.common_stamps(sequence), share)
+        if not wanted:
+            continue
+        with BagSource(matched[sequence]) as source:
+            for stamp in wanted:
+                core = EvaluationCore(config, error_images=True)
+                found = None
+                messages = source.messages(list(config.topics), stamp - margin, stamp + margin + 1)
+                for topic, _, msg in messages:
+                    for frame_set in core.push(topic, msg):
+                        if frame_set.stamp == stamp and found is None:
+                            found = core.score(frame_set)
+                for frame_set in core.flush():
+                    if frame_set.stamp == stamp and found is None:
+                        found = core.score(frame_set)
+                if found is None or found.partition is None:
+                    continue
+                partition = found.partition
+                images = [
+                    [method, _png_uri(colour_error(error, partition, ERROR_RANGE_PX), max_width)]
+                    for method, error in found.errors.items()
+                ]
+                frames.append(
+                    {
+                        "sequence": sequence,
+                        "stamp": str(stamp),
+                        "index": all_stamps.index(stamp),
+                        "images": images,
+                    }
+                )
+    if not frames:
+        return None
+    return {"max_error": ERROR_RANGE_PX, "legend": _legend_uri(), "frames": frames}
