@@ -127,7 +127,7 @@ class DdsEvaluator:
             self.thread.add(reader, self._push)
 
     def _new_live(self) -> LiveEvaluator:
-        return LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size)
+        return LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size, workers=2)
 
     def start(self) -> None:
         """Start taking messages."""

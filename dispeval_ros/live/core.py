@@ -8,6 +8,7 @@ driven by ``dispeval bag``, the rclpy evaluator node and the Cyclone DDS front e
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -125,6 +126,7 @@ class EvaluationCore:
         self._infos: dict[str, Any] = {}
         self._camera: Camera | None = None
         self.failed = dict.fromkeys(config.methods, 0)
+        self._failed_lock = threading.Lock()
 
     # -- input ------------------------------------------------------------------------------
 
@@ -172,7 +174,7 @@ class EvaluationCore:
             reference = self.evaluator.reference(gt, camera)
         except DispevalError as error:
             for method in frame_set.estimates:
-                self.failed[method] += 1
+                self._count_failed(method)
             result.problems.append((None, f"ground truth at {frame_set.stamp}: {error}"))
             return result
         for method, (stamp, msg) in frame_set.estimates.items():
@@ -189,9 +191,13 @@ class EvaluationCore:
                     )
                     result.partition = reference.partition
             except DispevalError as error:
-                self.failed[method] += 1
+                self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
         return result
+
+    def _count_failed(self, method: str) -> None:
+        with self._failed_lock:  # score() may run in several threads
+            self.failed[method] += 1
 
     def _topic(self, method: str) -> str:
         return self.config.methods[method]

@@ -29,7 +29,10 @@ class LiveStats:
 
 
 class LiveEvaluator:
-    """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams."""
+    """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams.
+
+    With ``workers`` > 1, results may be handed over out of stamp order.
+    """
 
     def __init__(
         self,
@@ -39,6 +42,7 @@ class LiveEvaluator:
         queue_size: int = 4,
         max_buffered: int = 256,
         error_images: bool = False,
+        workers: int = 1,
         keep_latencies: int = 100_000,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -54,9 +58,15 @@ class LiveEvaluator:
         self._queue: deque[tuple[FrameSet[Any, Any], float]] = deque()
         self._dropped: dict[str, int] = dict.fromkeys(config.methods, 0)
         self._stopping = False
-        self._busy = False
-        self._worker = threading.Thread(target=self._run, name="dispeval-scoring", daemon=True)
-        self._worker.start()
+        self._busy = 0
+        # Several workers score frames at once: the compiled kernels release the GIL, so a
+        # second core takes the next frame while the first is still being scored.
+        self._workers = [
+            threading.Thread(target=self._run, name=f"dispeval-scoring-{i}", daemon=True)
+            for i in range(max(1, workers))
+        ]
+        for worker in self._workers:
+            worker.start()
 
     # -- transport side ---------------------------------------------------------------------
 
@@ -92,13 +102,13 @@ class LiveEvaluator:
                 if not self._queue and self._stopping:
                     return
                 frame_set, arrived = self._queue.popleft()
-                self._busy = True
+                self._busy += 1
             try:
                 result = self.core.score(frame_set)
                 self.on_result(result)
             finally:
                 with self._lock:
-                    self._busy = False
+                    self._busy -= 1
                     self.stats.results += 1
                     if len(self.stats.latencies) < self._keep_latencies:
                         self.stats.latencies.append(self._clock() - arrived)
@@ -126,7 +136,8 @@ class LiveEvaluator:
                 self._queue.clear()
             self._stopping = True
             self._ready.notify_all()
-        self._worker.join(timeout)
+        for worker in self._workers:
+            worker.join(timeout)
 
     def counts(self) -> dict[str, MethodCounts]:
         """Per method: matched (scored), unmatched, dropped (incl. queue drops), failed."""
