@@ -32,6 +32,7 @@ from dispeval_ros.live.vectors import (
 )
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
 from dispeval_ros.offline.sample import find_sample_bag
+from dispeval_ros.offline.summary import summarize
 
 MS = 1_000_000
 
@@ -230,6 +231,17 @@ def test_summarizer_writes_the_bag_database_and_groups(
         if result is not None:
             summaries.append(result)
     assert len(summaries) == len(stamps) // 10
+    # the live summaries come from running totals: the same models as a summary of the database
+    from_database = summarize(core.store)
+    live_models = summaries[-1].sequences[0].models
+    database_models = from_database.sequences[0].models
+    assert live_models is not None
+    assert database_models is not None
+    assert live_models.groups == database_models.groups
+    assert live_models.reduced == database_models.reduced
+    for method, terms in database_models.reduction.items():
+        assert live_models.reduction[method] == pytest.approx(terms, rel=1e-12)
+    assert summaries[-1].sequences[0].common_frames == from_database.sequences[0].common_frames
     final = core.finish()
     assert final is not None
     records = group_statuses(final, core.sequence)

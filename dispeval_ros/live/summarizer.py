@@ -8,9 +8,12 @@ and ``summary.json``. Nothing accumulated is lost on an orderly shutdown.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import dataclasses
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from dispeval_ros.core import Scores
 from dispeval_ros.errors import ConfigurationError
@@ -37,6 +40,82 @@ class SummarizerConfig:
             )
 
 
+class RunningTotals:
+    """Per-sequence totals over the frames every method delivered, kept as frames arrive.
+
+    A summary from the database re-reads every frame, which grows with the run; this keeps
+    the sums of the common frames up to date in O(1) per frame, so a live summary costs the
+    same after an hour as after a minute. It answers the questions a summary asks (the
+    :class:`~dispeval_ros.offline.summary.ScoreSource` protocol) for per-sequence objectives.
+    """
+
+    def __init__(self) -> None:
+        self._methods: list[str] = []
+        self._measures: list[str] = []
+        self._template: Scores | None = None
+        self._totals: dict[str, dict[str, np.ndarray]] = {}
+        self._common: dict[str, list[int]] = {}
+        self._present: dict[str, set[str]] = {}
+        self._frames: dict[str, dict[str, int]] = {}
+
+    def add(self, sequence: str, stamp: int, scores: Mapping[str, Scores]) -> None:
+        """One frame; it counts only when every method of the sequence delivered it."""
+        if self._template is None and scores:
+            self._template = next(iter(scores.values()))
+            self._measures = list(self._template.measures)
+        present = self._present.setdefault(sequence, set())
+        counts = self._frames.setdefault(sequence, {})
+        for method in scores:
+            counts[method] = counts.get(method, 0) + 1
+            if method not in self._methods:
+                self._methods.append(method)
+        if not set(scores) <= present or not present:
+            # a method new to the sequence: earlier frames lack it, so none of them is common
+            present.update(scores)
+            self._totals[sequence] = {}
+            self._common[sequence] = []
+        if set(scores) != present:
+            return
+        totals = self._totals[sequence]
+        for method, method_scores in scores.items():
+            if method in totals:
+                totals[method] = totals[method] + method_scores.sums
+            else:
+                totals[method] = method_scores.sums.copy()
+        self._common[sequence].append(int(stamp))
+
+    def sequences(self) -> list[str]:  # noqa: D102 - the ScoreSource protocol
+        return list(self._frames)
+
+    def methods(self) -> list[str]:  # noqa: D102
+        return list(self._methods)
+
+    def measures(self) -> list[str]:  # noqa: D102
+        return list(self._measures)
+
+    def common_stamps(self, sequence: str) -> list[int]:  # noqa: D102
+        return list(self._common.get(sequence, []))
+
+    def sequence_scores(  # noqa: D102
+        self, sequence: str | None = None, stamps: Collection[int] | None = None
+    ) -> dict[str, Scores]:
+        template = self._template
+        if sequence is None or template is None:
+            raise ConfigurationError("running totals are kept per sequence")
+        return {
+            method: dataclasses.replace(template, sums=sums, quantiles={}, _cache={})
+            for method, sums in self._totals.get(sequence, {}).items()
+        }
+
+    def frame_scores(self, sequence: str, stamp: int) -> dict[str, Scores]:  # noqa: D102
+        raise ConfigurationError(
+            "running totals keep no single frames; use per-sequence objectives"
+        )
+
+    def match_counts(self, sequence: str) -> dict[str, MatchCounts]:  # noqa: D102
+        return {m: MatchCounts(n, 0, 0, 0) for m, n in self._frames.get(sequence, {}).items()}
+
+
 class SummarizerCore:
     """Accumulate frames (method → Scores per stamp) into sequences; summarise periodically."""
 
@@ -50,6 +129,7 @@ class SummarizerCore:
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
+        self.totals = RunningTotals()
         self._finished = False
 
     @staticmethod
@@ -60,6 +140,7 @@ class SummarizerCore:
         """One frame's scores; returns a fresh summary when a unit was just written."""
         for method, method_scores in scores.items():
             self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
+        self.totals.add(self.sequence, int(stamp), scores)
         self.frames += 1
         if len({f.stamp for f in self._pending}) >= self.config.every_n:
             return self._write_unit()
@@ -76,9 +157,10 @@ class SummarizerCore:
         self.store.add_unit(self.sequence, unit, self._pending, (), counts)
         self._units += 1
         self._pending = []
-        self.summary = summarize(
-            self.store, self.config.objective_measures, self.config.granularity
-        )
+        # Live summaries come from the running totals (O(1) per frame); per-frame objectives
+        # need every frame and so read the database. finish() always uses the database.
+        source = self.totals if self.config.granularity == "sequence" else self.store
+        self.summary = summarize(source, self.config.objective_measures, self.config.granularity)
         return self.summary
 
     def new_sequence(self) -> str:

@@ -7,15 +7,15 @@ is not rewarded with smaller sums. Sequence scores are sums of per-frame sums.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.store import MatchCounts, ResultsStore
+from dispeval_ros.io.store import MatchCounts
 
 GRANULARITIES = ("sequence", "frame")
 DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
@@ -83,8 +83,25 @@ def _block(
     return names, block
 
 
+class ScoreSource(Protocol):
+    """What a summary reads: a results database, or the live summarizer's running totals.
+
+    The methods mean what :class:`~dispeval_ros.io.store.ResultsStore`'s do.
+    """
+
+    def sequences(self) -> list[str]: ...  # noqa: D102
+    def methods(self) -> list[str]: ...  # noqa: D102
+    def measures(self) -> list[str]: ...  # noqa: D102
+    def common_stamps(self, sequence: str) -> list[int]: ...  # noqa: D102
+    def sequence_scores(  # noqa: D102
+        self, sequence: str | None = None, stamps: Collection[int] | None = None
+    ) -> dict[str, Scores]: ...
+    def frame_scores(self, sequence: str, stamp: int) -> dict[str, Scores]: ...  # noqa: D102
+    def match_counts(self, sequence: str) -> dict[str, MatchCounts]: ...  # noqa: D102
+
+
 def _objectives(
-    store: ResultsStore,
+    store: ScoreSource,
     sequence: str,
     methods: Sequence[str],
     measures: Sequence[str],
@@ -108,7 +125,7 @@ def _objectives(
 
 
 def summarize(
-    store: ResultsStore,
+    store: ScoreSource,
     measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES,
     granularity: str = "sequence",
 ) -> RunSummary:
