@@ -11,7 +11,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from dispeval_ros.cli import bag_cmd, common
+from dispeval_ros.cli import streams
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.dds import environment
 from dispeval_ros.errors import ConfigurationError
@@ -36,53 +36,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default="dds",
         help="'dds' (Cyclone DDS, interoperates with rmw_cyclonedds_cpp); the only one for now",
     )
-    topics = parser.add_argument_group("topics")
-    topics.add_argument(
-        "--gt", required=True, metavar="TOPIC", help="ground-truth sensor_msgs/Image topic"
-    )
-    topics.add_argument(
-        "--method",
-        action="append",
-        required=True,
-        metavar="NAME=TOPIC",
-        help="a method's stereo_msgs/DisparityImage topic; repeat for every method",
-    )
-    topics.add_argument(
-        "--camera-info",
-        nargs=2,
-        metavar=("LEFT", "RIGHT"),
-        help="left and right CameraInfo topics; default: f and t of the DisparityImage",
-    )
-    topics.add_argument(
-        "--gt-kind",
-        choices=("disparity", "depth"),
-        default="disparity",
-        help="ground truth is disparity (32FC1 px, 16UC1 / scale) or depth (32FC1 m, 16UC1 mm)",
-    )
-    topics.add_argument(
-        "--gt-scale", type=float, help="16-bit GT divisor (disparity default 256, depth 1000)"
-    )
-    topics.add_argument(
-        "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
-    )
-    topics.add_argument(
-        "--lateness",
-        type=float,
-        default=1000.0,
-        help="how late (ms, in stamp time) an estimate may arrive after its ground truth "
-        "(default 1000)",
-    )
-    common.add_evaluation_options(parser)
+    run = streams.add_stream_options(parser, "stamp time")
     alarms = parser.add_argument_group("alarms (levels of the published statuses)")
     alarms.add_argument("--warn", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=20")
     alarms.add_argument("--error", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=40")
-    run = parser.add_argument_group("run")
-    run.add_argument(
-        "--out",
-        type=Path,
-        default=Path("dispeval-results"),
-        help="results folder (default ./dispeval-results)",
-    )
     run.add_argument(
         "--resume", action="store_true", help="add to the results in --out (as new sequences)"
     )
@@ -93,19 +50,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help="write frames and recompute the groups every N frames (default 10); the period "
         "grows when a summary would take more than a tenth of the time (long runs)",
-    )
-    run.add_argument(
-        "--objectives",
-        choices=("sequence", "frame"),
-        default="sequence",
-        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
-    )
-    run.add_argument(
-        "--objective-measures",
-        nargs="+",
-        default=["sze", "bmpre"],
-        metavar="M",
-        help="measures that form the objectives (default: sze bmpre)",
     )
     run.add_argument(
         "--queue-size",
@@ -129,15 +73,11 @@ def run_command(args: argparse.Namespace) -> int:
             f"--transport {args.transport} is not available; use --transport dds "
             "(in a ROS 2 workspace, run dispeval's rclpy nodes with ros2 run instead)"
         )
-    if args.depth_ranges:
-        raise ConfigurationError(
-            "--depth-ranges is not available for live streams yet; use the 3-means depth criteria"
-        )
     if args.duration is not None and not args.duration > 0:
         raise ConfigurationError(f"--duration must be positive, got {args.duration}")
     if args.queue_size < 1:
         raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
-    config = bag_cmd.core_config(args)
+    config = streams.core_config(args, "live streams")
     missing = [m for m in args.objective_measures if m not in (config.measures or ())]
     if missing:
         raise ConfigurationError(
@@ -160,21 +100,7 @@ def run_command(args: argparse.Namespace) -> int:
     uri = environment.configure(args.dds_config)
     domain = environment.domain_id(args.domain_id)
     environment.require_cyclonedds()
-    record: dict[str, object] = {
-        "source": "dispeval live (DDS)",
-        "methods": dict(config.methods),
-        "gt_topic": config.gt_topic,
-        "gt_kind": config.gt_kind,
-        "gt_scale": config.gt_scale,
-        "camera_info": [config.left_info_topic, config.right_info_topic],
-        "criteria": list(config.criteria),
-        "measures": list(config.measures or []),
-        "missing": config.missing,
-        "delta": config.delta,
-        "mu": config.mu,
-        "tolerance_ns": config.tolerance_ns,
-        "lateness_ns": config.lateness_ns,
-    }
+    record: dict[str, object] = {"source": "dispeval live (DDS)", **config.as_record()}
     warm_up(config)
     session = LiveSession(
         domain,

@@ -80,6 +80,23 @@ class CoreConfig:
             expected[self.right_info_topic] = CAMERA_INFO_TYPE
         return expected
 
+    def as_record(self) -> dict[str, object]:
+        """The configuration as plain values (stored with results, compared on --resume)."""
+        return {
+            "methods": dict(self.methods),
+            "gt_topic": self.gt_topic,
+            "gt_kind": self.gt_kind,
+            "gt_scale": self.gt_scale,
+            "camera_info": [self.left_info_topic, self.right_info_topic],
+            "criteria": list(self.criteria),
+            "measures": list(self.measures or []),
+            "missing": self.missing,
+            "delta": self.delta,
+            "mu": self.mu,
+            "tolerance_ns": self.tolerance_ns,
+            "lateness_ns": self.lateness_ns,
+        }
+
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones)."""
         measures = self.measures if self.measures is not None else SEQUENCE_MEASURES
