@@ -269,18 +269,23 @@ def forward_warp_occlusion(
     height, width = gt.shape
     occluded = np.zeros((height, width), dtype=np.bool_)
     zbuffer = np.empty(width, dtype=np.float64)
+    targets = np.empty(width, dtype=np.int64)  # -1: not valid, -2: lands outside the image
     for y in range(height):
         zbuffer[:] = -np.inf
         for x in range(width):
+            target = -1
             if valid[y, x]:
-                target = int(np.floor(x - gt[y, x] + 0.5))
-                if 0 <= target < width and gt[y, x] > zbuffer[target]:
-                    zbuffer[target] = gt[y, x]
+                d = gt[y, x]
+                target = int(np.floor(x - d + 0.5))
+                if 0 <= target < width:
+                    zbuffer[target] = max(zbuffer[target], d)
+                else:
+                    target = -2
+            targets[x] = target
         for x in range(width):
-            if valid[y, x]:
-                target = int(np.floor(x - gt[y, x] + 0.5))
-                if target < 0 or target >= width or zbuffer[target] > gt[y, x] + tolerance:
-                    occluded[y, x] = True
+            target = targets[x]
+            if target == -2 or (target >= 0 and zbuffer[target] > gt[y, x] + tolerance):
+                occluded[y, x] = True
     return occluded
 
 
@@ -380,23 +385,39 @@ def histogram_moments(
     values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
     """Counts, sums and sums of squares of the valid values in ``bins`` equal bins."""
-    # Four interleaved histograms: neighbouring pixels usually fall in the same bin, and one
-    # histogram would chain every update on the previous one through memory.
-    counts = np.zeros((4, bins), dtype=np.float64)
-    sums = np.zeros((4, bins), dtype=np.float64)
-    squares = np.zeros((4, bins), dtype=np.float64)
+    # Neighbouring pixels usually fall in the same bin: a run of one bin is summed in
+    # registers and added once, instead of chaining every update through memory.
+    counts = np.zeros(bins, dtype=np.float64)
+    sums = np.zeros(bins, dtype=np.float64)
+    squares = np.zeros(bins, dtype=np.float64)
     flat_values = values.ravel()
     flat_valid = valid.ravel()
     scale = bins / (hi - lo) if hi > lo else 0.0
+    current = -1
+    run_count = 0.0
+    run_sum = 0.0
+    run_squares = 0.0
     for i in range(flat_values.shape[0]):
         if flat_valid[i]:
             v = np.float64(flat_values[i])
             b = min(int((v - lo) * scale), bins - 1)
-            lane = i & 3
-            counts[lane, b] += 1.0
-            sums[lane, b] += v
-            squares[lane, b] += v * v
-    return counts.sum(axis=0), sums.sum(axis=0), squares.sum(axis=0)
+            if b != current:
+                if current >= 0:
+                    counts[current] += run_count
+                    sums[current] += run_sum
+                    squares[current] += run_squares
+                current = b
+                run_count = 0.0
+                run_sum = 0.0
+                run_squares = 0.0
+            run_count += 1.0
+            run_sum += v
+            run_squares += v * v
+    if current >= 0:
+        counts[current] += run_count
+        sums[current] += run_sum
+        squares[current] += run_squares
+    return counts, sums, squares
 
 
 @njit(cache=True, nogil=True)
