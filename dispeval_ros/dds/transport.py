@@ -39,7 +39,6 @@ from dispeval_ros.dds.idl import struct_for
 from dispeval_ros.dds.wire import (
     QosProfile,
     dds_topic,
-    dds_type_name,
     normal_msgtype,
     pad_cdr,
     ros_topic_name,
@@ -440,8 +439,3 @@ class ReaderThread:
 
 def _print_error(message: str) -> None:
     print(f"dispeval: {message}", file=sys.stderr, flush=True)
-
-
-def describe_type(msgtype: str) -> str:
-    """``pkg/msg/T (pkg::msg::dds_::T_)`` for messages."""
-    return f"{msgtype} ({dds_type_name(msgtype)})"

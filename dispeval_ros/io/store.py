@@ -588,6 +588,10 @@ class ResultsStore:
             (sequence,),
         )
 
+    def overlapping_criteria(self) -> set[str]:
+        """Criteria stored as overlapping (the legacy Middlebury ones), recorded on first write."""
+        return self._criterion_order()[1]
+
     def _names(self, table: str) -> list[str]:
         return [name for (name,) in self._db.execute(f"SELECT name FROM {table} ORDER BY ordinal")]
 

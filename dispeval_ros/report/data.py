@@ -158,28 +158,6 @@ class Selection:
             else {name: [int(i) for i in indices] for name, indices in self.frames.items()},
         }
 
-    @classmethod
-    def from_dict(cls, document: Mapping[str, Any]) -> Selection:
-        """Inverse of :meth:`to_dict`."""
-        frames = document.get("frames")
-        return cls(
-            sequences=tuple(document["sequences"]),
-            criteria=tuple(document["criteria"]),
-            measures=tuple(document["measures"]),
-            methods=tuple(document["methods"]),
-            granularity=str(document.get("granularity", "sequence")),
-            frames=None if frames is None else {str(s): list(v) for s, v in frames.items()},
-        )
-
-
-def overlapping_criteria(store: ResultsStore) -> set[str]:
-    """Criteria flagged as overlapping (legacy Middlebury) anywhere in the results."""
-    found: set[str] = set()
-    for sequence in store.sequences():
-        for scores in store.sequence_scores(sequence).values():
-            found.update(scores.overlapping)
-    return found
-
 
 def default_selection(store: ResultsStore, overlapping: Iterable[str] | None = None) -> Selection:
     """What the summary compares, as the report opens.
@@ -189,7 +167,7 @@ def default_selection(store: ResultsStore, overlapping: Iterable[str] | None = N
     """
     measures = store.measures()
     chosen = [m for m in DEFAULT_OBJECTIVE_MEASURES if m in measures] or measures[:1]
-    skip = set(overlapping_criteria(store) if overlapping is None else overlapping)
+    skip = set(store.overlapping_criteria() if overlapping is None else overlapping)
     return Selection(
         sequences=tuple(store.sequences()),
         criteria=tuple(c for c in store.criteria() if c not in skip),
@@ -400,7 +378,6 @@ def _grid(
     stored = {name: np.full(shape, np.nan) for name in stored_names}
     method_at = {m: i for i, m in enumerate(methods)}
     criterion_at = {c: i for i, c in enumerate(criteria)}
-    overlapping: set[str] = set()
     relative = dict.fromkeys(methods, False)
     thresholds: np.ndarray | None = None
     policy = ""
@@ -410,7 +387,6 @@ def _grid(
             for method, scores in store.frame_scores(sequence, stamp).items():
                 m = method_at[method]
                 relative[method] = relative[method] or bool(scores.relative)
-                overlapping.update(scores.overlapping)
                 thresholds, policy = scores.thresholds, scores.policy
                 for row, criterion in enumerate(scores.criteria):
                     c = criterion_at[criterion]
@@ -421,7 +397,7 @@ def _grid(
                         stored[name][frame, c, m] = value
             frame += 1
     info = {
-        "overlapping": overlapping,
+        "overlapping": store.overlapping_criteria(),
         "relative": [relative[m] for m in methods],
         "thresholds": thresholds,
         "policy": policy,
