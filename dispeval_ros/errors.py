@@ -35,3 +35,23 @@ class ConfigurationError(DispevalError):
 
 class EmptyGroundTruthError(DispevalError):
     """A ground-truth map has no valid point, so nothing can be evaluated."""
+
+
+class ResultsConflictError(ConfigurationError):
+    """A results folder holds results this run cannot write to.
+
+    The message states the fact only; :meth:`advised` adds the remedy in the words of the
+    front end that raised it (command-line options, ROS parameters), so no user reads an option
+    of another interface.
+    """
+
+    def __init__(self, fact: str, *, resumable: bool) -> None:
+        super().__init__(fact)
+        self.fact = fact
+        self.resumable = resumable
+        """True: the folder holds results of this very run (resume continues them)."""
+
+    def advised(self, *, resume: str, same_options: str, elsewhere: str) -> ConfigurationError:
+        """The same error with its remedy: ``resume`` or ``same_options``, or ``elsewhere``."""
+        remedy = resume if self.resumable else same_options
+        return ConfigurationError(f"{self.fact}; {remedy} or {elsewhere}")

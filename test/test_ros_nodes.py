@@ -25,11 +25,14 @@ from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.io.messages import image_from_msg, stamp_ns
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.live.core import EvaluationCore, FrameResult
+from dispeval_ros.live.delivery import DELIVERY_STATUS, read_delivery
 from dispeval_ros.live.images import colour_error
 from dispeval_ros.live.vectors import (
     ERROR,
     OK,
+    PROBLEM_KEY,
     AlarmThresholds,
+    problem_status,
     score_vector,
     scores_from_status,
     scores_status,
@@ -281,7 +284,7 @@ def test_parameters_have_descriptors_and_alarms_change_at_run_time(ros: Ros) -> 
     assert node.get_parameter("queue_size").value == 4
     assert list(node.get_parameter("criteria").value) == ["all", "visibility", "depth"]
     assert node.config.methods == {"good": topics.good}
-    assert node.config.measures is None  # unset: the summable default set
+    assert tuple(node.config.measures) == SEQUENCE_MEASURES  # the summable default set
 
     (refused,) = node.set_parameters([Parameter("gt_topic", value="/elsewhere")])
     assert not refused.successful  # read-only
@@ -290,6 +293,51 @@ def test_parameters_have_descriptors_and_alarms_change_at_run_time(ros: Ros) -> 
     assert "CRITERION/MEASURE" in bad.reason
     (good,) = node.set_parameters([Parameter("alarm_warn", value=["all/bmp=0"])])
     assert good.successful
+
+
+def parameter_values(ros: Ros, node_name: str) -> dict[str, Any]:
+    """What ``ros2 param dump`` reads: ListParameters, then GetParameters of every name."""
+    services = importlib.import_module("rcl_interfaces.srv")
+    lister = ros.helper.create_client(services.ListParameters, f"/{node_name}/list_parameters")
+    getter = ros.helper.create_client(services.GetParameters, f"/{node_name}/get_parameters")
+    assert lister.wait_for_service(timeout_sec=TIMEOUT)
+    assert getter.wait_for_service(timeout_sec=TIMEOUT)
+    listed = lister.call_async(services.ListParameters.Request())
+    assert ros.spin_until(listed.done)
+    names = list(listed.result().result.names)
+    got = getter.call_async(services.GetParameters.Request(names=names))
+    assert ros.spin_until(got.done)
+    values = list(got.result().values)
+    assert len(values) == len(names), "GetParameters answered nothing: a parameter is unset"
+    return {
+        name: Parameter.from_parameter_msg(rcl_interfaces.Parameter(name=name, value=value))
+        for name, value in zip(names, values, strict=True)
+    }
+
+
+def test_param_dump_answers_every_parameter(ros: Ros, tmp_path: Path) -> None:
+    topics = Topics("dump")
+    ros.evaluator(methods=[f"good:{topics.good}"], gt_topic=topics.gt)
+    ros.summarizer(output_dir=str(tmp_path / "out"))
+    for node_name, table in (
+        ("dispeval_evaluator", EVALUATOR_PARAMETERS),
+        ("dispeval_summarizer", SUMMARIZER_PARAMETERS),
+    ):
+        values = parameter_values(ros, node_name)
+        for param in table:
+            assert values[param.name].type_ != Parameter.Type.NOT_SET, param.name
+    evaluator_values = parameter_values(ros, "dispeval_evaluator")
+    assert tuple(evaluator_values["measures"].value) == SEQUENCE_MEASURES
+    assert evaluator_values["alarm_warn"].type_ == Parameter.Type.STRING_ARRAY
+    assert list(evaluator_values["alarm_warn"].value) == []
+    assert list(evaluator_values["methods"].value) == [f"good:{topics.good}"]
+
+
+def test_empty_array_defaults_are_never_read_only() -> None:
+    """A typed empty value is set after declaring; ROS refuses that for read-only ones."""
+    for param in (*EVALUATOR_PARAMETERS, *SUMMARIZER_PARAMETERS):
+        if param.default == ():
+            assert not param.read_only, param.name
 
 
 def test_summarizer_parameters_have_descriptors(ros: Ros, tmp_path: Path) -> None:
@@ -355,9 +403,13 @@ def test_scores_vectors_and_error_images_equal_the_core(ros: Ros) -> None:
     assert len(expected) == 3
 
     no_alarms = AlarmThresholds()
-    for array, result in zip(scores, expected, strict=True):
+    for index, (array, result) in enumerate(zip(scores, expected, strict=True), start=1):
         assert stamp_ns(array.header) == result.stamp
         got = statuses(array)
+        delivery = read_delivery(convert.status_record(got.pop(DELIVERY_STATUS)))
+        assert delivery is not None
+        assert (delivery.source, delivery.index, delivery.final) == (node.source_id, index, False)
+        assert set(delivery.counts) == {"good", "bad"}
         assert set(got) == {"good", "bad"}
         for method, method_scores in result.scores.items():
             record = scores_status(
@@ -416,7 +468,7 @@ def test_frame_problems_are_error_statuses(ros: Ros) -> None:
     assert convert.status_level(problem) == ERROR
     assert problem.hardware_id == topics.bad
     ((key, text),) = convert.status_values(problem)
-    assert key == convert.PROBLEM_KEY
+    assert key == PROBLEM_KEY
     assert text == problem.message
     assert topics.bad in text
     node.finish()
@@ -443,12 +495,18 @@ def test_shutdown_scores_and_publishes_the_frames_still_waiting(ros: Ros) -> Non
     ros.spin_for(0.5)
     assert scores == []
 
-    node.finish()  # what SIGINT does: flush, score, publish
-    assert ros.spin_until(lambda: len(scores) == 1)
-    assert set(statuses(scores[0])) == {"good"}
+    node.finish()  # what SIGINT does: flush, score, publish, then the final counts
+    assert ros.spin_until(lambda: len(scores) == 2)
+    assert set(statuses(scores[0])) == {"good", DELIVERY_STATUS}
     counts = node.counts()
     assert (counts["good"].matched, counts["bad"].dropped) == (1, 1)
     assert node.frames_scored == 1
+    (final_status,) = scores[1].status
+    final = read_delivery(convert.status_record(final_status))
+    assert final is not None
+    assert (final.index, final.final) == (1, True)
+    assert final.counts["good"].matched == 1
+    assert final.counts["bad"].dropped == 1
 
 
 # -- summarizer -------------------------------------------------------------------------------------
@@ -553,7 +611,7 @@ def test_problem_statuses_are_not_stored(ros: Ros, tmp_path: Path) -> None:
     assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
     ((stamp, frame),) = synthetic_scores(1)
     records = [scores_status("good", "/t/good", frame["good"], None, stamp)]
-    records.append(convert.problem_record("bad", "/t/bad", "/t/bad at 0: size mismatch"))
+    records.append(problem_status("bad", "/t/bad", "/t/bad at 0: size mismatch"))
     publisher.publish(convert.diagnostic_array(stamp, records))
     assert ros.spin_until(lambda: node.frames_received == 1)
     ros.destroy(node)

@@ -27,8 +27,9 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from dispeval_ros import Camera, Evaluator, Scores
+from dispeval_ros.cli.main import cli_advice
 from dispeval_ros.core.measures import SUM_FIELDS, quantile_level
-from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.io.store import (
     RESULTS_FILE,
     FrameScores,
@@ -36,6 +37,7 @@ from dispeval_ros.io.store import (
     Problem,
     ResultsStore,
 )
+from dispeval_ros.ros.params import ros_advice
 
 CONFIG = {
     "criteria": ["all", "visibility", "depth"],
@@ -382,22 +384,35 @@ def test_a_failing_unit_leaves_nothing(tmp_path: Path) -> None:
 
 
 def test_existing_results_need_resume(reference: Path) -> None:
-    with pytest.raises(ConfigurationError) as caught:
+    with pytest.raises(ResultsConflictError) as caught:
         ResultsStore.create(reference, CONFIG)
-    message = str(caught.value)
-    assert "\n" not in message
-    assert message == (
+    conflict = caught.value
+    assert str(conflict) == f"{reference} already holds results"  # the fact, no front end's words
+    assert conflict.resumable
+    cli = str(cli_advice(conflict))
+    assert cli == (
         f"{reference} already holds results; use --resume to continue them or choose another --out"
     )
+    ros = str(ros_advice(conflict))
+    assert ros == (
+        f"{reference} already holds results; set resume:=true to continue them or set another "
+        "output_dir"
+    )
+    assert "--" not in ros
+    assert ":=" not in cli
 
 
 def test_resume_with_another_configuration_names_the_key(tmp_path: Path) -> None:
     with ResultsStore.create(tmp_path, CONFIG) as store:
         write_plan(store, PLAN[:1])
     changed = {**CONFIG, "delta": 2.0}
-    with pytest.raises(ConfigurationError, match=r"'delta' is 1\.0 there but 2\.0 now") as caught:
+    with pytest.raises(ResultsConflictError, match=r"'delta' is 1\.0 there but 2\.0 now") as caught:
         ResultsStore.create(tmp_path, changed, resume=True)
     assert "\n" not in str(caught.value)
+    assert not caught.value.resumable
+    assert str(ros_advice(caught.value)).endswith(
+        "now; resume with the same parameters or set another output_dir"
+    )
     with pytest.raises(ConfigurationError, match="'extra' is \\(absent\\) there but 1 now"):
         ResultsStore.create(tmp_path, {**CONFIG, "extra": 1}, resume=True)
     same_values = {"topics": CONFIG["topics"], **CONFIG}  # key order does not matter

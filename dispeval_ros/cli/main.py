@@ -17,7 +17,7 @@ from dispeval_ros.cli import (
     play_cmd,
     report_cmd,  # the interactive HTML report
 )
-from dispeval_ros.errors import DispevalError
+from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 
 COMMANDS = (eval_cmd, bag_cmd, models_cmd, make_bag_cmd, demo_cmd, live_cmd, play_cmd, report_cmd)
 
@@ -36,12 +36,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def cli_advice(conflict: ResultsConflictError) -> ConfigurationError:
+    """A results-folder conflict with its remedy in command-line terms."""
+    return conflict.advised(
+        resume="use --resume to continue them",
+        same_options="resume with the same options",
+        elsewhere="choose another --out",
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a command; user mistakes print one line and exit with status 2."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.run(args))
+        try:
+            return int(args.run(args))
+        except ResultsConflictError as conflict:
+            raise cli_advice(conflict) from None
     except DispevalError as error:
         print(f"dispeval {args.command}: error: {error}", file=sys.stderr)
         return 2

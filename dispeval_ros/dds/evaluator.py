@@ -42,15 +42,14 @@ from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.live.core import CoreConfig, FrameResult, MethodCounts
 from dispeval_ros.live.runner import LiveEvaluator
 from dispeval_ros.live.vectors import (
-    ERROR,
     AlarmThresholds,
     StatusRecord,
+    problem_status,
     score_vector,
     scores_status,
     vector_labels,
 )
 
-GROUND_TRUTH = "ground_truth"
 VECTOR_QOS = QosProfile(reliable=True, depth=10)
 MIN_RESTART_NS = 1_000_000_000
 
@@ -205,7 +204,7 @@ class DdsEvaluator:
         ]
         for method, message in result.problems:
             topic = self.config.methods[method] if method else self.config.gt_topic
-            records.append(StatusRecord(method or GROUND_TRUTH, topic, ERROR, message, ()))
+            records.append(problem_status(method, topic, message))
         return records
 
     def publish(self, result: FrameResult) -> None:

@@ -27,7 +27,7 @@ from typing import Any
 
 from dispeval_ros.core import Scores
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of
-from dispeval_ros.dds.evaluator import GROUND_TRUTH, MIN_RESTART_NS
+from dispeval_ros.dds.evaluator import MIN_RESTART_NS
 from dispeval_ros.dds.transport import DdsTransport, RawWriter, Received
 from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
@@ -40,7 +40,7 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import MatchCounts, Problem
 from dispeval_ros.live.core import MethodCounts
 from dispeval_ros.live.summarizer import SummarizerConfig, SummarizerCore, group_statuses
-from dispeval_ros.live.vectors import ERROR, scores_from_status
+from dispeval_ros.live.vectors import read_problem, scores_from_status
 from dispeval_ros.offline.summary import RunSummary
 
 COUNTS_UNIT = "live-counts"
@@ -103,11 +103,9 @@ class DdsSummarizer:
         scores: dict[str, Scores] = {}
         problems: list[tuple[str | None, str]] = []
         for record in records:
-            if not record.values:
-                if record.level == ERROR:
-                    problems.append(
-                        (None if record.name == GROUND_TRUTH else record.name, record.message)
-                    )
+            problem = read_problem(record)
+            if problem is not None:
+                problems.append(problem)
                 continue
             try:
                 scores[record.name] = scores_from_status(record.values)

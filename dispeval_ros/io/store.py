@@ -24,7 +24,7 @@ from types import TracebackType
 import numpy as np
 
 from dispeval_ros.core.measures import SUM_FIELDS, Scores, quantile_level
-from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 
 RESULTS_FILE = "results.sqlite"
 APPLICATION_ID = 0x44737045
@@ -180,10 +180,7 @@ class ResultsStore:
         try:
             state = _state(connection, path)
             if state == "results" and not resume:
-                raise ConfigurationError(
-                    f"{directory} already holds results; use --resume to continue them "
-                    "or choose another --out"
-                )
+                raise ResultsConflictError(f"{directory} already holds results", resumable=True)
             connection.execute("PRAGMA journal_mode = WAL")
             connection.execute("PRAGMA synchronous = NORMAL")
             if state == "empty":
@@ -637,9 +634,9 @@ class ResultsStore:
             return
         difference = layout.difference(stored)
         if difference is not None:
-            raise ConfigurationError(
-                f"{self.path}: these scores do not fit the stored results ({difference} "
-                "stored); resume with the same options or choose another --out"
+            raise ResultsConflictError(
+                f"{self.path}: these scores do not fit the stored results ({difference} stored)",
+                resumable=False,
             )
 
     def _sums(self, blob: bytes, layout: _Layout) -> np.ndarray:
@@ -780,10 +777,10 @@ def _check_config(
     for key in [*stored, *(key for key in wanted if key not in stored)]:
         old, new = stored.get(key), wanted.get(key)
         if old != new:
-            raise ConfigurationError(
+            raise ResultsConflictError(
                 f"{directory} holds results of another configuration: '{key}' is "
-                f"{_shorten(old or '(absent)')} there but {_shorten(new or '(absent)')} now; "
-                "resume with the same options or choose another --out"
+                f"{_shorten(old or '(absent)')} there but {_shorten(new or '(absent)')} now",
+                resumable=False,
             )
 
 

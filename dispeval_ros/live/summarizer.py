@@ -18,7 +18,7 @@ import numpy as np
 from dispeval_ros.core import Scores
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
-from dispeval_ros.io.store import FrameScores, MatchCounts, ResultsStore
+from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
 from dispeval_ros.live.vectors import OK, StatusRecord, format_number
 from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, RunSummary, summarize
 
@@ -162,6 +162,22 @@ class SummarizerCore:
         source = self.totals if self.config.granularity == "sequence" else self.store
         self.summary = summarize(source, self.config.objective_measures, self.config.granularity)
         return self.summary
+
+    def add_counts(
+        self,
+        counts: Mapping[str, MatchCounts],
+        problems: Sequence[tuple[int | None, str | None, str]] = (),
+    ) -> None:
+        """Match counts and problems (stamp, method, message) of the current sequence.
+
+        They come from the evaluator (unmatched, dropped, failed; frames it could not score)
+        and are stored as a unit of their own, as ``dispeval bag`` stores them with its frames.
+        """
+        if not counts and not problems:
+            return
+        rows = [Problem(self.sequence, stamp, method, text) for stamp, method, text in problems]
+        self.store.add_unit(self.sequence, f"{self._units:06d}", [], rows, counts)
+        self._units += 1
 
     def new_sequence(self) -> str:
         """Close the current sequence (writing what it holds) and start the next one."""

@@ -21,6 +21,10 @@ from dispeval_ros.errors import ConfigurationError, InputError
 
 OK, WARN, ERROR = 0, 1, 2
 SUMS_KEY = "sums"
+PROBLEM_KEY = "_problem"
+"""Key of the one value of an ERROR status that reports a frame which could not be scored."""
+GROUND_TRUTH = "ground_truth"
+"""Status name of problems with the ground truth (no method could be scored on that frame)."""
 META_KEYS = ("_policy", "_relative", "_thresholds", "_overlapping", "_estimate_stamp")
 
 
@@ -172,3 +176,20 @@ def score_vector(scores: Scores, labels: Sequence[str]) -> list[float]:
         criterion, _, measure = label.rpartition("/")
         vector.append(float(scores[criterion][measure]))
     return vector
+
+
+def problem_status(method: str | None, topic: str, message: str) -> StatusRecord:
+    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it)."""
+    return StatusRecord(
+        method if method is not None else GROUND_TRUTH, topic, ERROR, message, ((PROBLEM_KEY, message),)
+    )
+
+
+def read_problem(record: StatusRecord) -> tuple[str | None, str] | None:
+    """``(method or None for the ground truth, message)`` of a problem status, else None.
+
+    Also reads problem statuses without values (as earlier evaluators sent them).
+    """
+    if record.level != ERROR or (record.values and record.values[0][0] != PROBLEM_KEY):
+        return None
+    return (None if record.name == GROUND_TRUTH else record.name, record.message)

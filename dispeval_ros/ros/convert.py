@@ -28,14 +28,10 @@ from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiAr
 
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.messages import IMAGE_ENCODINGS
-from dispeval_ros.live.vectors import ERROR, StatusRecord
+from dispeval_ros.live.vectors import StatusRecord
 
 VECTOR_DIM_LABEL = "criterion/measure"
 """Label of the single dimension of every score vector (its elements are criterion/measure)."""
-PROBLEM_KEY = "_problem"
-"""Key of the one value of an ERROR status that reports a frame which could not be scored."""
-GT_STATUS_NAME = "ground_truth"
-"""Status name of problems with the ground truth (no method could be scored on that frame)."""
 
 _NS = 1_000_000_000
 
@@ -84,14 +80,14 @@ def status_values(status: Any) -> list[tuple[str, str]]:
     return [(str(item.key), str(item.value)) for item in status.values]
 
 
-def problem_record(method: str | None, topic: str, message: str) -> StatusRecord:
-    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it)."""
+def status_record(status: Any) -> StatusRecord:
+    """A received ``DiagnosticStatus`` as the transport-free record it was made from."""
     return StatusRecord(
-        method if method is not None else GT_STATUS_NAME,
-        topic,
-        ERROR,
-        message,
-        ((PROBLEM_KEY, message),),
+        str(status.name),
+        str(status.hardware_id),
+        status_level(status),
+        str(status.message),
+        tuple(status_values(status)),
     )
 
 

@@ -6,7 +6,10 @@ frame's results:
 
 - ``/dispeval/scores`` (``diagnostic_msgs/DiagnosticArray``, stamp = the ground-truth frame's):
   one status per method (name = method, hardware_id = its topic, every ``criterion/measure``
-  plus the exact sums, level from the alarms), and an ERROR status per frame problem;
+  plus the exact sums, level from the alarms), an ERROR status per frame problem, and the
+  delivery record (:mod:`dispeval_ros.live.delivery`: this evaluator's id, the array's index
+  and its per-method counts) from which a summarizer stores the counts and counts what it
+  lost; a last array with the final delivery record is sent at shutdown;
 - ``/dispeval/NAME/vector`` (``std_msgs/Float64MultiArray``) with its labels latched on
   ``/dispeval/NAME/vector_labels`` (see :mod:`dispeval_ros.ros.convert`);
 - with ``error_images``: ``/dispeval/NAME/error`` (32FC1) and ``/dispeval/NAME/error_color``
@@ -19,6 +22,8 @@ and published before the node exits, and the per-method counts are logged.
 
 from __future__ import annotations
 
+import os
+import secrets
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -51,10 +56,17 @@ from dispeval_ros.live.core import (
     FrameResult,
     MethodCounts,
 )
+from dispeval_ros.live.delivery import delivery_record
 from dispeval_ros.live.images import colour_error
 from dispeval_ros.live.replay import replay
 from dispeval_ros.live.runner import LiveEvaluator
-from dispeval_ros.live.vectors import AlarmThresholds, score_vector, scores_status, vector_labels
+from dispeval_ros.live.vectors import (
+    AlarmThresholds,
+    problem_status,
+    score_vector,
+    scores_status,
+    vector_labels,
+)
 from dispeval_ros.ros import convert
 from dispeval_ros.ros.params import (
     EVALUATOR_PARAMETERS,
@@ -65,6 +77,14 @@ from dispeval_ros.ros.params import (
 
 NODE_NAME = "dispeval_evaluator"
 SCORES_TOPIC = "/dispeval/scores"
+SCORES_DEPTH = 1000
+"""Scores arrays kept for a slow (reliable) subscriber: about a minute at 15 Hz, a few MB."""
+SCORES_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=SCORES_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 RESULTS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,
@@ -105,11 +125,19 @@ class EvaluatorNode(Node):
         self._gt_frame_id = ""
         self._labels: dict[str, list[str]] = {}
         self._finished = False
+        self.source_id = f"{self.get_fully_qualified_name()}@{os.getpid()}-{secrets.token_hex(3)}"
+        """This evaluator in delivery records (unique per run, so a restart is a new source)."""
+        self._publish_lock = threading.Lock()
+        self.published = 0
+        """Scores arrays published so far."""
+        self.publish_failures = 0
+        """Scored frames whose scores could not be published (counted, logged at shutdown)."""
+        self._last_stamp = 0
         if self.options.bag is not None:
             _check_bag(self.options.bag, list(self.config.topics))
 
         methods = list(self.config.methods)
-        self._scores_pub = self.create_publisher(DiagnosticArray, SCORES_TOPIC, RESULTS_QOS)
+        self._scores_pub = self.create_publisher(DiagnosticArray, SCORES_TOPIC, SCORES_QOS)
         self._vector_pubs = {
             m: self.create_publisher(Float64MultiArray, method_topic(m, "vector"), RESULTS_QOS)
             for m in methods
@@ -244,6 +272,7 @@ class EvaluatorNode(Node):
         try:
             self._publish(result)
         except Exception as error:
+            self.publish_failures += 1
             self.get_logger().error(
                 f"cannot publish the scores of the frame at {result.stamp} ns: {error!r}",
                 throttle_duration_sec=LOG_PERIOD,
@@ -265,9 +294,14 @@ class EvaluatorNode(Node):
         for method, problem in result.problems:
             self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
             topic = self.config.methods[method] if method is not None else self.config.gt_topic
-            records.append(convert.problem_record(method, topic, problem))
+            records.append(problem_status(method, topic, problem))
         if records:
-            self._scores_pub.publish(convert.diagnostic_array(result.stamp, records, frame_id))
+            with self._publish_lock:
+                index = self.published + 1
+                records.append(delivery_record(self.source_id, index, self._live.counts()))
+                self._scores_pub.publish(convert.diagnostic_array(result.stamp, records, frame_id))
+                self.published = index
+                self._last_stamp = max(self._last_stamp, result.stamp)
         for method, scores in result.scores.items():
             labels = vector_labels(scores.criteria, scores.measures)
             if labels != self._labels.get(method):
@@ -316,21 +350,40 @@ class EvaluatorNode(Node):
         if self._replay_thread is not None:
             self._replay_thread.join(timeout=30.0)
         self._live.stop(flush=True)
-        try:
-            self._scores_pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
-        except Exception as error:  # e.g. the context is already shut down
-            self.get_logger().debug(f"not waiting for acknowledgements: {error!r}")
+        acknowledged = self._publish_final_counts()
         logger = self.get_logger()
         stats = self._live.stats
         logger.info(
             f"scored {stats.results} frame(s); {stats.queue_drops} dropped because scoring "
-            "fell behind"
+            f"fell behind; published {self.published} scores array(s)"
         )
+        if self.publish_failures:
+            logger.warning(f"{self.publish_failures} scored frame(s) could not be published")
+        if not acknowledged:
+            logger.warning(
+                f"not every subscriber of {SCORES_TOPIC} acknowledged the last scores within "
+                f"{ACK_TIMEOUT:g} s: they may not have received them"
+            )
         for method, counts in self._live.counts().items():
             logger.info(
                 f"{method}: matched {counts.matched}, unmatched {counts.unmatched}, "
                 f"dropped {counts.dropped}, failed {counts.failed}"
             )
+
+    def _publish_final_counts(self) -> bool:
+        """Send the final delivery record, then wait for acknowledgements; False if none came."""
+        try:
+            with self._publish_lock:
+                record = delivery_record(
+                    self.source_id, self.published, self._live.counts(), final=True
+                )
+                self._scores_pub.publish(
+                    convert.diagnostic_array(self._last_stamp, [record], self._gt_frame_id)
+                )
+            return bool(self._scores_pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)))
+        except Exception as error:  # e.g. the context is already shut down
+            self.get_logger().warning(f"cannot publish the final counts: {error!r}")
+            return False
 
     @property
     def frames_scored(self) -> int:

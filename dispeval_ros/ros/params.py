@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.core.measures import SEQUENCE_MEASURES
+from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.live.core import GT_KINDS, CoreConfig
 from dispeval_ros.live.summarizer import SummarizerConfig
 from dispeval_ros.live.vectors import AlarmThresholds
@@ -42,8 +43,11 @@ _NS = 1_000_000_000
 class Param:
     """One ROS parameter: its type, default and the text ``ros2 param describe`` shows.
 
-    ``default`` None is only for string arrays whose default is empty: ROS cannot infer a type
-    from ``[]``, so they are declared by type and read back as ``()`` while unset.
+    Every parameter has a value once declared (``ros2 param get``/``dump`` answer only for a
+    node whose parameters all have one). ``default`` None marks a required string array with no
+    default (``methods``: the node refuses to start without it); ``()`` is an empty string
+    array, which ROS cannot type from ``[]``: it is declared by type, then set to a typed
+    empty array unless a parameter file gave it.
     """
 
     name: str
@@ -113,9 +117,9 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "measures",
         STRING_ARRAY,
-        None,
-        "Error measures. Unset = the summable default set (every default measure except the "
-        "quantiles aNN, which cannot be added over frames)",
+        SEQUENCE_MEASURES,
+        "Error measures. The default is the summable default set (every default measure except "
+        "the quantiles aNN, which cannot be added over frames)",
         "bmp, bmp_count, bad_X, mae, mse, rmse, mre, sze, sze_mean, bmpre, bmpre_mean, d1, aNN, "
         "density",
     ),
@@ -194,7 +198,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "alarm_warn",
         STRING_ARRAY,
-        None,
+        (),
         "WARN level in /dispeval/scores when CRITERION/MEASURE exceeds VALUE (density: falls "
         "below it). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=20",
@@ -203,7 +207,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "alarm_error",
         STRING_ARRAY,
-        None,
+        (),
         "ERROR level in /dispeval/scores when CRITERION/MEASURE exceeds VALUE (density: falls "
         "below it). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=40",
@@ -449,6 +453,15 @@ def summarizer_options(values: Mapping[str, Any]) -> SummarizerOptions:
     )
 
 
+def ros_advice(conflict: ResultsConflictError) -> ConfigurationError:
+    """A results-folder conflict with its remedy in ROS parameter terms (never CLI options)."""
+    return conflict.advised(
+        resume="set resume:=true to continue them",
+        same_options="resume with the same parameters",
+        elsewhere="set another output_dir",
+    )
+
+
 def _seconds_to_ns(value: Any, name: str) -> int:
     seconds = float(value)
     if not (math.isfinite(seconds) and seconds >= 0):
@@ -506,14 +519,20 @@ def descriptor(param: Param) -> Any:
 def declare_parameters(node: Any, params: Sequence[Param]) -> dict[str, Any]:
     """Declare every row on ``node`` (overrides from YAML / ``-p`` apply) and read the values.
 
-    String arrays without a default are declared by type (``Parameter.Type.STRING_ARRAY``):
-    rclpy would type an empty list default as a byte array.
+    Empty string arrays are declared by type (``Parameter.Type.STRING_ARRAY``; rclpy would
+    type an empty list default as a byte array), then given a typed empty value when no file
+    or ``-p`` set them: a parameter left unset makes rclpy's GetParameters service answer
+    nothing for the whole node (``ros2 param dump`` prints ``{}``).
     """
     from rclpy.parameter import Parameter
 
     for param in params:
-        if param.default is None:
+        if param.default is None or param.default == ():
             node.declare_parameter(param.name, Parameter.Type.STRING_ARRAY, descriptor(param))
+            not_set = Parameter(param.name, Parameter.Type.NOT_SET)
+            unset = node.get_parameter_or(param.name, not_set).type_ == Parameter.Type.NOT_SET
+            if param.default == () and unset:
+                node.set_parameters([Parameter(param.name, Parameter.Type.STRING_ARRAY, [])])
         else:
             default = list(param.default) if isinstance(param.default, tuple) else param.default
             node.declare_parameter(param.name, default, descriptor(param))

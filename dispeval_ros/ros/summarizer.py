@@ -3,7 +3,10 @@
 A thin adapter over :class:`~dispeval_ros.live.summarizer.SummarizerCore`: every
 ``/dispeval/scores`` array is turned back into exact :class:`~dispeval_ros.core.Scores`
 (:func:`~dispeval_ros.live.vectors.scores_from_status`, from the raw sums) and added to the
-results database, the same one ``dispeval bag`` writes. After every ``summary_every`` frames the
+results database, the same one ``dispeval bag`` writes, with the evaluators' problems and
+counts (unmatched, dropped, failed) from their delivery records
+(:mod:`dispeval_ros.live.delivery`); scored frames that never arrived are counted as dropped,
+with a problem saying so. After every ``summary_every`` frames the
 A* Groups are recomputed and published, latched, on ``/dispeval/groups``. ``~/new_sequence``
 (``std_srvs/Trigger``) closes the current sequence and starts the next one.
 
@@ -21,31 +24,34 @@ from collections.abc import Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from dispeval_ros.core import Scores
-from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.live.delivery import DeliveryLedger, read_delivery
 from dispeval_ros.live.summarizer import SummarizerCore, group_statuses
-from dispeval_ros.live.vectors import scores_from_status
+from dispeval_ros.live.vectors import read_problem, scores_from_status
 from dispeval_ros.offline.summary import RunSummary
 from dispeval_ros.ros import convert
+from dispeval_ros.ros.evaluator import SCORES_DEPTH, SCORES_TOPIC
 from dispeval_ros.ros.params import (
     SUMMARIZER_PARAMETERS,
     declare_parameters,
+    ros_advice,
     run_node,
     summarizer_options,
 )
 
 NODE_NAME = "dispeval_summarizer"
-SCORES_TOPIC = "/dispeval/scores"
 GROUPS_TOPIC = "/dispeval/groups"
 SCORES_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=100,
+    depth=SCORES_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
@@ -59,6 +65,8 @@ RUN_CONFIG = {"source": NODE_NAME, "scores_topic": SCORES_TOPIC}
 """What the results database records about the run (``resume`` requires the same)."""
 LOG_PERIOD = 5.0
 DRAIN_POLL = 0.05
+ACK_TIMEOUT = 2.0
+"""Seconds to wait at shutdown for subscribers to acknowledge the final groups."""
 DRAIN_QUIET_POLLS = 3
 """At shutdown: polls without a new message and without a publisher that end the drain."""
 
@@ -73,15 +81,16 @@ class SummarizerNode(Node):
         out = self.options.config.out
         try:
             self._core = SummarizerCore(self.options.config, RUN_CONFIG)
-        except ConfigurationError as error:
-            raise ConfigurationError(
-                f"{error} (summarizer parameters: resume:=true continues them, or set another "
-                "output_dir)"
-            ) from None
+        except ResultsConflictError as conflict:
+            raise ros_advice(conflict) from None
         self._lock = threading.Lock()
         self._finished = False
         self._received = 0
         self._last_stamp = 0
+        self._ledger = DeliveryLedger()
+        self._problems: list[tuple[int | None, str | None, str]] = []
+        self.groups_acknowledged: bool | None = None
+        """Whether subscribers acknowledged the final groups (None before shutdown)."""
         self._groups_pub = self.create_publisher(DiagnosticArray, GROUPS_TOPIC, GROUPS_QOS)
         self.create_subscription(DiagnosticArray, SCORES_TOPIC, self._on_scores, SCORES_QOS)
         self.create_service(Trigger, "~/new_sequence", self._on_new_sequence)
@@ -104,27 +113,39 @@ class SummarizerNode(Node):
 
     def _on_scores(self, msg: Any) -> None:
         self._received += 1
+        stamp = stamp_ns(msg.header)
         frame: dict[str, Scores] = {}
+        deliveries = []
+        problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
-            values = convert.status_values(status)
-            if any(key == convert.PROBLEM_KEY for key, _ in values):
-                continue  # a frame the evaluator could not score: nothing to add
+            record = convert.status_record(status)
+            problem = read_problem(record)
             try:
-                frame[str(status.name)] = scores_from_status(values)
+                delivery = read_delivery(record)
+                if delivery is not None:
+                    deliveries.append(delivery)
+                elif problem is not None:
+                    problems.append((stamp, *problem))
+                else:
+                    frame[record.name] = scores_from_status(record.values)
             except DispevalError as error:
                 self.get_logger().warning(
-                    f"ignoring status '{status.name}' on {SCORES_TOPIC}: {error}",
+                    f"ignoring status '{record.name}' on {SCORES_TOPIC}: {error}",
                     throttle_duration_sec=LOG_PERIOD,
                 )
-        if not frame:
-            return
-        stamp = stamp_ns(msg.header)
+        summary = None
         with self._lock:
             if self._finished:
+                return
+            for delivery in deliveries:
+                self._ledger.add(delivery, frame)
+            self._problems.extend(problems)
+            if not frame:
                 return
             try:
                 summary = self._core.add(stamp, frame)
             except DispevalError as error:
+                self._problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(
                     f"cannot store the frame at {stamp} ns: {error}",
                     throttle_duration_sec=LOG_PERIOD,
@@ -144,6 +165,7 @@ class SummarizerNode(Node):
                 return response
             try:
                 previous = self._core.sequence
+                self._store_counts(closing=False)
                 name = self._core.new_sequence()
                 summary = self._core.summary
                 response.success = True
@@ -182,6 +204,7 @@ class SummarizerNode(Node):
         with self._lock:
             self._finished = True
             try:
+                self._store_counts(closing=True)
                 summary = self._core.finish()
             except DispevalError as error:
                 self.get_logger().error(f"cannot complete the summary: {error}")
@@ -193,6 +216,24 @@ class SummarizerNode(Node):
         self.get_logger().info(f"{frames} frame(s) summarized; wrote {written} in {out}")
         if summary is not None:
             self._publish_groups(summary)
+            try:
+                acked = self._groups_pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+            except Exception as error:  # e.g. the context is already shut down
+                self.get_logger().warning(f"cannot wait for the final groups: {error!r}")
+                acked = False
+            self.groups_acknowledged = bool(acked)
+        lost = self._ledger.lost_arrays()
+        if lost:
+            self.get_logger().warning(
+                f"{lost} scored frame(s) never arrived (counted as dropped in {out})"
+            )
+
+    def _store_counts(self, *, closing: bool) -> None:
+        """The evaluators' counts and problems of the current sequence (under the lock)."""
+        counts, messages = self._ledger.checkpoint(closing=closing)
+        problems = [*self._problems, *((None, None, text) for text in messages)]
+        self._problems = []
+        self._core.add_counts(counts, problems)
 
     def _drain(self, executor: Any) -> None:
         """Spin while scores keep coming or an evaluator still publishes, at most the timeout."""
