@@ -64,7 +64,11 @@ def _nodes(context: LaunchContext) -> list[Node]:
     output_dir = LaunchConfiguration("output_dir").perform(context)
     # Overrides only when given, so the files' values stand otherwise; str so that a path
     # such as "2024" is not read as a number.
-    evaluator_parameters: list[str | dict[str, ParameterValue]] = [config]
+    # A replay waits for the summarizer's subscription: frames scored before it would be lost.
+    evaluator_parameters: list[str | dict[str, ParameterValue]] = [
+        config,
+        {"bag_wait_subscribers": ParameterValue(1, value_type=int)},
+    ]
     if bag:
         evaluator_parameters.append({"bag": ParameterValue(bag, value_type=str)})
     summarizer_parameters: list[str | dict[str, ParameterValue]] = [summarizer_config, config]

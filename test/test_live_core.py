@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import dataclasses
-import random
 import threading
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from sample_feed import bag_reference, expected_counts, robot_stream, sample_bag, sample_config
 
-from dispeval_ros.cli.main import main
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig, FrameResult
+from dispeval_ros.live.core import FrameResult
 from dispeval_ros.live.images import colour_error
 from dispeval_ros.live.replay import replay
 from dispeval_ros.live.runner import LiveEvaluator
@@ -30,109 +27,20 @@ from dispeval_ros.live.vectors import (
     scores_status,
     vector_labels,
 )
-from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
-from dispeval_ros.offline.sample import find_sample_bag
+from dispeval_ros.offline.make_bag import GT_TOPIC
 from dispeval_ros.offline.summary import summarize
-
-MS = 1_000_000
 
 
 @pytest.fixture(scope="module")
 def sample() -> Path:
-    bag = find_sample_bag()
-    assert bag is not None, "bags/sample_drive is part of the repository"
-    return bag
-
-
-def sample_config(bag: Path) -> CoreConfig:
-    with BagSource(bag) as source:
-        methods = {
-            t.split("/")[2]: t
-            for t, i in source.topics.items()
-            if i.msgtype == "stereo_msgs/msg/DisparityImage"
-        }
-    return CoreConfig(
-        methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO
-    )
+    return sample_bag()
 
 
 @pytest.fixture(scope="module")
 def reference_run(
     sample: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> dict[tuple[int, str], Any]:
-    """What ``dispeval bag`` stores for the sample bag: (GT stamp, method) → Scores."""
-    config = sample_config(sample)
-    out = tmp_path_factory.mktemp("bag") / "out"
-    args = [
-        "bag",
-        str(sample),
-        "--gt",
-        GT_TOPIC,
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
-        "--out",
-        str(out),
-        "--quiet",
-    ]
-    for name, topic in config.methods.items():
-        args += ["--method", f"{name}={topic}"]
-    assert main(args) == 0
-    with ResultsStore.open(out) as store:
-        (sequence,) = store.sequences()
-        return {
-            (stamp, method): scores
-            for stamp in store.stamps(sequence)
-            for method, scores in store.frame_scores(sequence, stamp).items()
-        }
-
-
-def restamped(msg: Any, delta: int) -> Any:
-    """A copy of a message whose header stamp moved by ``delta`` ns (real rosbags objects)."""
-    stamp = stamp_ns(msg.header) + delta
-    header = dataclasses.replace(
-        msg.header,
-        stamp=dataclasses.replace(msg.header.stamp, sec=stamp // 10**9, nanosec=stamp % 10**9),
-    )
-    return dataclasses.replace(msg, header=header)
-
-
-def robot_stream(
-    bag: Path, config: CoreConfig, seed: int = 3
-) -> tuple[list[tuple[str, Any]], dict[str, Any]]:
-    """The bag's messages with stamp jitter, a few dropped frames and a little reordering."""
-    rng = random.Random(seed)
-    with BagSource(bag) as source:
-        messages = [(topic, msg) for topic, _, msg in source.messages(list(config.topics))]
-    gt_stamps = sorted(stamp_ns(m.header) for t, m in messages if t == GT_TOPIC)
-    methods = list(config.methods)
-    dropped_gt = {gt_stamps[5], gt_stamps[17]}
-    dropped_estimates = {
-        (methods[0], gt_stamps[3]),
-        (methods[1], gt_stamps[3]),
-        (methods[-1], gt_stamps[11]),
-    }
-    stream = []
-    for topic, original in messages:
-        msg = original
-        stamp = stamp_ns(msg.header)
-        if topic == GT_TOPIC and stamp in dropped_gt:
-            continue
-        method = next((m for m, t in config.methods.items() if t == topic), None)
-        if method is not None:
-            if (method, stamp) in dropped_estimates:
-                continue
-            if method == methods[1]:  # a driver with a jittery clock: ±4 ms (tolerance 10 ms)
-                msg = restamped(msg, rng.randint(-4, 4) * MS)
-        stream.append((topic, msg))
-    for i in range(0, len(stream) - 1, 7):  # transport reordering between topics
-        stream[i], stream[i + 1] = stream[i + 1], stream[i]
-    expected = {
-        "dropped_gt": dropped_gt,
-        "dropped_estimates": dropped_estimates,
-        "gt_stamps": gt_stamps,
-    }
-    return stream, expected
+    return bag_reference(sample, tmp_path_factory.mktemp("bag") / "out")
 
 
 def test_node_core_matches_dispeval_bag_with_jitter_and_drops(
@@ -140,6 +48,7 @@ def test_node_core_matches_dispeval_bag_with_jitter_and_drops(
 ) -> None:
     config = sample_config(sample)
     stream, expected = robot_stream(sample, config)
+    messages = [(topic, msg) for topic, _, msg in stream]
     results: list[FrameResult] = []
     lock = threading.Lock()
 
@@ -148,23 +57,15 @@ def test_node_core_matches_dispeval_bag_with_jitter_and_drops(
             results.append(result)
 
     live = LiveEvaluator(config, collect, queue_size=1000)
-    for topic, msg in stream:
+    for topic, msg in messages:
         live.push(topic, msg)
     live.stop(flush=True)
 
     scored = {(r.stamp, m): s for r in results for m, s in r.scores.items()}
     for key, scores in scored.items():
         np.testing.assert_array_equal(scores.sums, reference_run[key].sums, err_msg=str(key))
-    methods = list(config.methods)
-    n_gt = len(expected["gt_stamps"])
     counts = live.counts()
-    for method in methods:
-        own_drops = sum(1 for m, _ in expected["dropped_estimates"] if m == method)
-        assert counts[method].dropped == own_drops, method
-        # its estimates of the two dropped GT frames have nothing to pair with
-        assert counts[method].unmatched == len(expected["dropped_gt"]), method
-        assert counts[method].matched == n_gt - len(expected["dropped_gt"]) - own_drops, method
-        assert counts[method].failed == 0
+    assert counts == expected_counts(config, expected)
     assert len(scored) == sum(c.matched for c in counts.values())
     assert live.stats.queue_drops == 0
 

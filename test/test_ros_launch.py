@@ -27,6 +27,15 @@ launch_ros_actions = pytest.importorskip("launch_ros.actions")
 launch_testing = pytest.importorskip("launch_testing")
 launch_testing_actions = pytest.importorskip("launch_testing.actions")
 launch_testing_asserts = pytest.importorskip("launch_testing.asserts")
+ament_index = pytest.importorskip("ament_index_python.packages")
+try:
+    ament_index.get_package_share_directory("dispeval_ros")
+except ament_index.PackageNotFoundError:
+    pytest.skip(
+        "dispeval_ros is not installed in a ROS 2 workspace (colcon build, then source "
+        "install/setup.bash): launch cannot find its executables",
+        allow_module_level=True,
+    )
 rclpy = pytest.importorskip("rclpy")
 rclpy_context = pytest.importorskip("rclpy.context")
 rclpy_executors = pytest.importorskip("rclpy.executors")

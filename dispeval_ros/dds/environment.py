@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
-from importlib import metadata
 from pathlib import Path
 from types import ModuleType
 
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.share import shared_file_candidates
 
 LOCALHOST_CONFIG = "cyclonedds_localhost.xml"
 MAX_DOMAIN_ID = 232
@@ -48,20 +47,8 @@ def require_cyclonedds() -> ModuleType:
 
 
 def localhost_config() -> Path:
-    """The shipped same-host configuration (source checkout or installed ``share/``)."""
-    here = Path(__file__).resolve()
-    candidates = [
-        here.parents[2] / "config" / LOCALHOST_CONFIG,  # source checkout, editable install
-        Path(sys.prefix) / "share" / "dispeval_ros" / "config" / LOCALHOST_CONFIG,
-    ]
-    try:  # installed as a data file of the distribution (pip, colcon)
-        files = metadata.distribution("dispeval_ros").files or []
-        candidates.extend(
-            Path(str(file.locate())) for file in files if str(file).endswith(LOCALHOST_CONFIG)
-        )
-    except metadata.PackageNotFoundError:
-        pass
-    for candidate in candidates:
+    """The shipped same-host configuration (source checkout, pip or colcon ``share/``)."""
+    for candidate in shared_file_candidates(f"config/{LOCALHOST_CONFIG}"):
         if candidate.is_file():
             return candidate
     raise ConfigurationError(

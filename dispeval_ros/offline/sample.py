@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import sys
-from importlib import metadata
 from pathlib import Path
+
+from dispeval_ros.io.share import shared_file_candidates
 
 SAMPLE_NAME = "sample_drive"
 SAMPLE_FRAMES = 25
@@ -13,27 +13,11 @@ SAMPLE_METHODS = ("bm_fast", "bm_smooth", "sgbm", "sgbm_3way")
 SAMPLE_FPS = 10.0
 
 
-def _candidates() -> list[Path]:
-    here = Path(__file__).resolve()
-    found = [here.parents[2] / "bags" / SAMPLE_NAME]  # source checkout or editable install
-    found.append(Path(sys.prefix) / "share" / "dispeval_ros" / "bags" / SAMPLE_NAME)
-    try:
-        files = metadata.distribution("dispeval_ros").files or []
-        found.extend(
-            Path(str(file.locate())).parent
-            for file in files
-            if f"bags/{SAMPLE_NAME}/" in str(file).replace("\\", "/")
-        )
-    except metadata.PackageNotFoundError:
-        pass
-    return found
-
-
 def find_sample_bag() -> Path | None:
     """The installed or checked-out sample bag folder, if present."""
-    for candidate in _candidates():
-        if (candidate / "metadata.yaml").is_file():
-            return candidate
+    for candidate in shared_file_candidates(f"bags/{SAMPLE_NAME}/metadata.yaml"):
+        if candidate.is_file():
+            return candidate.parent
     return None
 
 
