@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import importlib
 import os
+import time
+from collections.abc import Callable
 from types import ModuleType
+from typing import Any
 
 import pytest
 
@@ -26,3 +29,73 @@ def ros_import(name: str) -> ModuleType:
         if ROS_REQUIRED:
             pytest.fail(f"DISPEVAL_REQUIRE_ROS=1 but {reason}", pytrace=False)
         pytest.skip(reason, allow_module_level=True)
+
+
+TIMEOUT = 60.0
+
+
+class Ros:
+    """One rclpy context (its own domain) with an executor, a helper node, and nodes under test.
+
+    ``evaluator_class`` / ``summarizer_class`` are the project's node classes (imported by the
+    test module, so that an import error in them fails rather than skips).
+    """
+
+    def __init__(self, domain_id: int, evaluator_class: Any, summarizer_class: Any) -> None:
+        rclpy = ros_import("rclpy")
+        self._rclpy = rclpy
+        self._parameter = ros_import("rclpy.parameter").Parameter
+        self._classes = {"evaluator": evaluator_class, "summarizer": summarizer_class}
+        self.context = ros_import("rclpy.context").Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        executors = ros_import("rclpy.executors")
+        self.executor = executors.SingleThreadedExecutor(context=self.context)
+        self.helper = rclpy.create_node("dispeval_test_helper", context=self.context)
+        self.executor.add_node(self.helper)
+        self.nodes: list[Any] = []
+
+    def add(self, node: Any) -> Any:
+        self.executor.add_node(node)
+        self.nodes.append(node)
+        return node
+
+    def _node(self, kind: str, parameters: dict[str, Any]) -> Any:
+        overrides = [self._parameter(name, value=value) for name, value in parameters.items()]
+        return self.add(
+            self._classes[kind](context=self.context, parameter_overrides=overrides)
+        )
+
+    def evaluator(self, **parameters: Any) -> Any:
+        return self._node("evaluator", parameters)
+
+    def summarizer(self, **parameters: Any) -> Any:
+        return self._node("summarizer", parameters)
+
+    def collect(self, msg_type: Any, topic: str, qos: Any, raw: bool = False) -> list[Any]:
+        received: list[Any] = []
+        self.helper.create_subscription(msg_type, topic, received.append, qos, raw=raw)
+        return received
+
+    def spin_until(self, condition: Callable[[], bool], timeout: float = TIMEOUT) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+        return condition()
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def destroy(self, node: Any) -> None:
+        node.finish()
+        self.executor.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
+
+    def close(self) -> None:
+        for node in list(self.nodes):
+            self.destroy(node)
+        self.executor.shutdown()
+        self.helper.destroy_node()
+        self._rclpy.try_shutdown(context=self.context)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros_support import ros_import
+from ros_support import Ros, ros_import
 from rosbags.typesys import Stores, get_typestore
 from sample_feed import (
     Stream,
@@ -88,67 +88,9 @@ START_NS = 1_700_000_000_000_000_000
 # -- harness ------------------------------------------------------------------------------------
 
 
-class Ros:
-    """One rclpy context with an executor, a helper node for test topics, and nodes under test."""
-
-    def __init__(self) -> None:
-        self.context = rclpy_context.Context()
-        rclpy.init(context=self.context, domain_id=DOMAIN_ID)
-        self.executor = rclpy_executors.SingleThreadedExecutor(context=self.context)
-        self.helper = rclpy.create_node("dispeval_test_helper", context=self.context)
-        self.executor.add_node(self.helper)
-        self.nodes: list[Any] = []
-
-    def add(self, node: Any) -> Any:
-        self.executor.add_node(node)
-        self.nodes.append(node)
-        return node
-
-    def evaluator(self, **parameters: Any) -> Any:
-        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
-        return self.add(
-            evaluator_node.EvaluatorNode(context=self.context, parameter_overrides=overrides)
-        )
-
-    def summarizer(self, **parameters: Any) -> Any:
-        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
-        return self.add(
-            summarizer_node.SummarizerNode(context=self.context, parameter_overrides=overrides)
-        )
-
-    def collect(self, msg_type: Any, topic: str, qos: Any) -> list[Any]:
-        received: list[Any] = []
-        self.helper.create_subscription(msg_type, topic, received.append, qos)
-        return received
-
-    def spin_until(self, condition: Callable[[], bool], timeout: float = TIMEOUT) -> bool:
-        deadline = time.monotonic() + timeout
-        while not condition() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-        return condition()
-
-    def spin_for(self, seconds: float) -> None:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def destroy(self, node: Any) -> None:
-        node.finish()
-        self.executor.remove_node(node)
-        self.nodes.remove(node)
-        node.destroy_node()
-
-    def close(self) -> None:
-        for node in list(self.nodes):
-            self.destroy(node)
-        self.executor.shutdown()
-        self.helper.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
 @pytest.fixture
 def ros() -> Iterator[Ros]:
-    harness = Ros()
+    harness = Ros(DOMAIN_ID, evaluator_node.EvaluatorNode, summarizer_node.SummarizerNode)
     try:
         yield harness
     finally:
