@@ -734,3 +734,71 @@ def test_a_lagging_summarizer_counts_what_it_lost(ros: Ros, tmp_path: Path) -> N
         }
         (problem,) = store.problems()
         assert problem.message.startswith("2 scored frame(s) of evaluator ev never reached")
+
+
+def rss_bytes() -> int:
+    """Resident memory of this process (Linux)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    return 0
+
+
+@pytest.mark.slow
+def test_overload_ten_times_the_recorded_rate_for_30_s(ros: Ros, tmp_path: Path) -> None:
+    """The evaluator stays up with bounded memory; every scored frame is stored or counted."""
+    bag = sample_bag()
+    config = sample_config(bag)
+    out = tmp_path / "results"
+    summarizer = ros.summarizer(output_dir=str(out), summary_every=10, drain_timeout=2.0)
+    evaluator = ros.evaluator(
+        methods=[f"{m}:{t}" for m, t in config.methods.items()],
+        gt_topic=config.gt_topic,
+        left_camera_info=config.left_info_topic,
+        right_camera_info=config.right_info_topic,
+        bag=str(bag),
+        bag_rate=10.0,
+        bag_loop=True,
+        bag_wait_subscribers=1,
+        bag_exit=False,
+    )
+    samples: list[int] = []
+    started = time.monotonic()
+    while time.monotonic() - started < 30.0:
+        ros.spin_for(1.0)
+        samples.append(rss_bytes())
+    assert evaluator._replay_thread.is_alive(), "the replay stopped"
+    evaluator.finish()
+    counts = evaluator.counts()
+    ros.spin_for(1.0)  # the final counts on their way
+    ros.destroy(summarizer)  # drains what is still coming, stores, summarizes
+
+    # memory: after the first third (caches, compiled kernels), no steady growth
+    settled = max(samples[: len(samples) // 3])
+    assert max(samples) < settled + 64 * 2**20, [s // 2**20 for s in samples]
+    # every scored frame is in the database, or counted as lost (dropped) with a problem
+    with ResultsStore.open(out) as store:
+        stored: dict[str, MatchCounts] = {}
+        for sequence in store.sequences():
+            for method, c in store.match_counts(sequence).items():
+                previous = stored.get(method, MatchCounts(0, 0, 0, 0))
+                stored[method] = MatchCounts(
+                    previous.matched + c.matched,
+                    previous.unmatched + c.unmatched,
+                    previous.dropped + c.dropped,
+                    previous.failed + c.failed,
+                )
+        lost_messages = [p.message for p in store.problems() if "never reached" in p.message]
+    assert set(stored) == set(config.methods)
+    for method, c in counts.items():
+        assert stored[method].matched + stored[method].dropped == c.matched + c.dropped, method
+        assert stored[method].unmatched == c.unmatched, method
+        assert stored[method].failed == c.failed, method
+    lost = sum(stored[m].dropped - c.dropped for m, c in counts.items())
+    assert (lost > 0) == bool(lost_messages)
+    assert evaluator.published > 10 * 25, "not overloaded: fewer frames than ten passes"
+    print(
+        f"overload: {evaluator.published} arrays published, lost method-frames {lost}, "
+        f"queue drops {evaluator._live.stats.queue_drops}, RSS {samples[0] // 2**20}→"
+        f"{samples[-1] // 2**20} MiB"
+    )
