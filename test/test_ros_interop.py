@@ -207,6 +207,11 @@ def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(
         assert ros.spin_until(
             lambda: all(p.get_subscription_count() > 0 for p in pubs.values()), TIMEOUT
         ), "dispeval live's subscriptions were not discovered"
+        # ... and live sees our publishers (discovery is not symmetric in time)
+        assert ros.spin_until(
+            lambda: "every input topic has a publisher" in log.read_text(errors="replace"),
+            TIMEOUT,
+        ), log.read_text(errors="replace")
         stream = []
         typestore = get_typestore(Stores.ROS2_JAZZY)
         with AnyReader([bag]) as reader:

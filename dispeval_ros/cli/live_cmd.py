@@ -154,23 +154,34 @@ def restore_handlers(previous: dict[int, Any]) -> None:
         signal.signal(sig, handler)
 
 
+CONNECT_POLL = 0.1
+"""Seconds between checks for the input publishers until all are there."""
+
+
 def _run_until_stopped(
     session: Any, stop: threading.Event, duration: float | None, *, quiet: bool
 ) -> None:
-    """Wait for a signal or the duration, drawing the live line (frames/s) meanwhile."""
+    """Wait for a signal or the duration, drawing the live line (frames/s) meanwhile.
+
+    Says once when every input topic has a publisher (the robot is seen), quiet or not.
+    """
     started = last_time = time.monotonic()
     last_frames = 0
     tty = sys.stderr.isatty()
     period = 1.0 if tty else 10.0
     next_line = started + period
+    connected = False
     while True:
         now = time.monotonic()
         end = None if duration is None else started + duration
         if end is not None and now >= end:
             break
         timeout = next_line - now if end is None else min(next_line, end) - now
-        if stop.wait(max(0.0, timeout)):
+        if stop.wait(max(0.0, timeout if connected else min(timeout, CONNECT_POLL))):
             break
+        if not connected and not session.status().silent:
+            connected = True
+            print("dispeval live: every input topic has a publisher", file=sys.stderr, flush=True)
         now = time.monotonic()
         if now < next_line:
             continue
