@@ -72,11 +72,11 @@ def run_command(args: argparse.Namespace) -> int:
     with ResultsStore.open(args.results) as store:
         thumbnails = error_thumbnails(store, args.bag, args.thumbnails) if args.bag else None
         data = build_report_data(store, title=args.title, thumbnails=thumbnails)
+        size = write_report(data, out)  # first: a problem with the figures keeps the page
+        print(f"report: {out} ({size / 1e6:.1f} MB)")
         if args.png:
             from dispeval_ros.report.figures import write_figures
 
             written = write_figures(store, args.png)
             print(f"figures: {', '.join(str(path) for path in written)}")
-    size = write_report(data, out)
-    print(f"report: {out} ({size / 1e6:.1f} MB)")
     return 0

@@ -10,11 +10,14 @@ message naming the file, what was expected and what came.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TypeAlias
+from typing import BinaryIO, TypeAlias
 
 import cv2
 import numpy as np
@@ -209,6 +212,26 @@ def write_pfm(path: PathLike, array: np.ndarray) -> None:
 # ------------------------------------------------------------------------------ image decode
 
 
+@contextmanager
+def quiet_opencv() -> Iterator[None]:
+    """OpenCV's own log lines off (``[ WARN:0@…] global grfmt_png.cpp …``) while decoding.
+
+    A file OpenCV cannot read gets one line of ours naming the file; its C++ warnings would
+    only precede it. The previous level is restored, so a program using the library keeps its
+    own OpenCV logging.
+    """
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is None:
+        yield
+        return
+    previous = logging.getLogLevel()
+    logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        logging.setLogLevel(previous)
+
+
 def _decode_image(data: bytes, path: Path, what: str) -> np.ndarray:
     """Decode PNG/PNM/BMP bytes with OpenCV into one channel, keeping 8 or 16 bit depth.
 
@@ -218,7 +241,8 @@ def _decode_image(data: bytes, path: Path, what: str) -> np.ndarray:
     """
     buffer = np.frombuffer(data, dtype=np.uint8)
     try:
-        image = cv2.imdecode(buffer, cv2.IMREAD_UNCHANGED)
+        with quiet_opencv():
+            image = cv2.imdecode(buffer, cv2.IMREAD_UNCHANGED)
     except cv2.error:
         image = None
     if image is None:
@@ -246,9 +270,35 @@ def _decode_image(data: bytes, path: Path, what: str) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
-def _load_npz(data: bytes, path: Path) -> np.ndarray:
-    import io
+def _checked_npy(stream: BinaryIO, available: int, path: Path) -> np.ndarray:
+    """One ``.npy`` array, once its header's shape is known to fit the bytes that follow.
 
+    ``np.load`` allocates what the header claims before reading: a damaged or hostile header
+    (a shape of 10¹¹ elements in a 1 kB file) would ask for hundreds of GiB.
+    """
+    fmt = np.lib.format
+    start = stream.tell()
+    version = fmt.read_magic(stream)
+    if version == (1, 0):
+        shape, _, dtype = fmt.read_array_header_1_0(stream)
+    elif version in ((2, 0), (3, 0)):
+        shape, _, dtype = fmt.read_array_header_2_0(stream)
+    else:
+        raise ValueError(f"npy format version {version} is not supported")
+    if dtype.hasobject:
+        raise InputError(f"{path}: the array holds Python objects ({dtype}), expected numbers")
+    needed = math.prod(shape) * dtype.itemsize
+    body = available - (stream.tell() - start)
+    if needed > body:
+        raise InputError(
+            f"{path}: the npy header claims a {'×'.join(map(str, shape))} {dtype} array "
+            f"({needed} bytes) but only {body} bytes follow (damaged or not an npy array)"
+        )
+    stream.seek(start)
+    return np.asarray(fmt.read_array(stream, allow_pickle=False))
+
+
+def _load_npz(data: bytes, path: Path) -> np.ndarray:
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
             keys = list(archive.files)
@@ -263,7 +313,9 @@ def _load_npz(data: bytes, path: Path) -> np.ndarray:
                     f"{path}: npz archive holds several arrays {keys}, expected 'arr_0' or "
                     f"a single array"
                 )
-            return np.asarray(archive[key])
+            member = f"{key}.npy"
+            with archive.zip.open(member) as stream:
+                return _checked_npy(stream, archive.zip.getinfo(member).file_size, path)
     except InputError:
         raise
     except (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError) as exc:
@@ -271,10 +323,8 @@ def _load_npz(data: bytes, path: Path) -> np.ndarray:
 
 
 def _load_npy(data: bytes, path: Path) -> np.ndarray:
-    import io
-
     try:
-        return np.asarray(np.load(io.BytesIO(data), allow_pickle=False))
+        return _checked_npy(io.BytesIO(data), len(data), path)
     except (ValueError, OSError, EOFError) as exc:
         raise InputError(f"{path}: cannot decode npy array ({_one_line(str(exc))})") from None
 

@@ -150,10 +150,17 @@ class ResultsStore:
     :meth:`open` (read-only). Use it from one thread at a time.
     """
 
-    def __init__(self, connection: sqlite3.Connection, path: Path, writable: bool) -> None:
+    def __init__(
+        self,
+        connection: sqlite3.Connection,
+        path: Path,
+        writable: bool,
+        lock: _FolderLock | None = None,
+    ) -> None:
         self._db = connection
         self.path = path
         self._writable = writable
+        self._lock = lock
         self._layout: _Layout | None = None
 
     # -- opening -----------------------------------------------------------------------------
@@ -176,7 +183,12 @@ class ResultsStore:
                 f"{directory}: cannot create the results folder ({error.strerror or error})"
             ) from None
         path = directory / RESULTS_FILE
-        connection = _connect(path, writable=True)
+        lock = _FolderLock.take(directory)
+        try:
+            connection = _connect(path, writable=True)
+        except BaseException:
+            lock.release()
+            raise
         try:
             state = _state(connection, path)
             if state == "results" and not resume:
@@ -187,10 +199,15 @@ class ResultsStore:
                 _initialise(connection, wanted)
             else:
                 _check_config(connection, directory, wanted)
+        except sqlite3.Error as error:
+            connection.close()
+            lock.release()
+            raise InputError(f"{path}: cannot write the results database ({error})") from None
         except BaseException:
             connection.close()
+            lock.release()
             raise
-        return cls(connection, path, writable=True)
+        return cls(connection, path, writable=True, lock=lock)
 
     @classmethod
     def open(cls, directory_or_file: Path) -> ResultsStore:
@@ -210,6 +227,7 @@ class ResultsStore:
                     f"{path} is an empty SQLite database; expected dispeval results "
                     f"({RESULTS_FILE} written by 'dispeval bag' or the summarizer)"
                 )
+            _check_tables(connection, path)
         except BaseException:
             connection.close()
             raise
@@ -218,6 +236,9 @@ class ResultsStore:
     def close(self) -> None:
         """Close the connection (a writer's WAL is checkpointed into the database file)."""
         self._db.close()
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
     def __enter__(self) -> ResultsStore:
         return self
@@ -564,15 +585,27 @@ class ResultsStore:
 
     @contextmanager
     def _transaction(self) -> Iterator[None]:
-        """One write transaction: committed if the block ends, rolled back if it raises."""
-        self._db.execute("BEGIN IMMEDIATE")
+        """One write transaction: committed if the block ends, rolled back if it raises.
+
+        A failing write (disk full, I/O error) is one line; what earlier transactions stored
+        stays intact, so the run can be resumed once the cause is gone.
+        """
         try:
-            yield
-        except BaseException:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                yield
+            except BaseException:
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
+        except sqlite3.OperationalError as error:
             if self._db.in_transaction:
                 self._db.execute("ROLLBACK")
-            raise
-        self._db.execute("COMMIT")
+            raise InputError(
+                f"{self.path}: cannot write the results ({error}); what was stored before is "
+                "intact: resume the run once the cause is gone"
+            ) from None
 
     def _require_writable(self) -> None:
         if not self._writable:
@@ -704,6 +737,56 @@ def _config_rows(config: Mapping[str, object]) -> list[tuple[str, str]]:
     return [
         (str(key), _json(value, f"configuration value '{key}'")) for key, value in config.items()
     ]
+
+
+class _FolderLock:
+    """An exclusive lock on a results folder for one writing run (``flock`` on the folder).
+
+    Two runs started at once on one folder would both create the tables (``table run already
+    exists``) or meet ``database is locked``; the second is refused with one line instead. The
+    lock goes with the process: a killed run leaves nothing to clean up.
+    """
+
+    def __init__(self, fd: int | None) -> None:
+        self._fd = fd
+
+    @classmethod
+    def take(cls, directory: Path) -> _FolderLock:
+        try:
+            import fcntl
+        except ImportError:  # no flock (Windows): SQLite's own locking is all there is
+            return cls(None)
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise ConfigurationError(
+                f"{directory} is in use by another dispeval run; wait for it to end or write "
+                "elsewhere"
+            ) from None
+        return cls(fd)
+
+    def release(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)  # closing the descriptor releases the lock
+            self._fd = None
+
+
+def _check_tables(connection: sqlite3.Connection, path: Path) -> None:
+    """Every table of the schema is there (a damaged or hand-edited database is one line)."""
+    present = {
+        name for (name,) in connection.execute("SELECT name FROM sqlite_master WHERE type='table'")
+    }
+    wanted = {statement.split()[2] for statement in _SCHEMA}
+    if "layout" in present and connection.execute("SELECT COUNT(*) FROM layout").fetchone()[0]:
+        wanted.add("frames")  # made with the first frame
+    missing = sorted(wanted - present)
+    if missing:
+        raise InputError(
+            f"{path}: the results database is incomplete (no table {', '.join(missing)}); "
+            "it was damaged or not written by dispeval"
+        )
 
 
 def _connect(path: Path, writable: bool) -> sqlite3.Connection:

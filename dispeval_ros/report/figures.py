@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.core.models import ModelResult
-from dispeval_ros.errors import InputError
+from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.report.data import (
     Selection,
@@ -250,7 +250,13 @@ def write_figures(
     group: int = 1,
 ) -> list[Path]:
     """Write the four PNG figures of ``selection`` (default: the report's) to ``directory``."""
-    import matplotlib
+    try:
+        import matplotlib
+    except ImportError:
+        raise ConfigurationError(
+            "PNG figures need matplotlib, which a plain install leaves out: "
+            'pip install "dispeval_ros[report]"'
+        ) from None
 
     directory = Path(directory)
     try:
