@@ -25,7 +25,11 @@ def shared_data() -> Path:
     """Root of the real data sets, or skip (fail under DISPEVAL_REQUIRE_DATA=1) if absent."""
     root = _data_root()
     if not (root / "README.md").is_file():
-        reason = f"real stereo data not found at {root} (set DISPEVAL_DATA to its folder)"
+        reason = (
+            f"real stereo data not found at {root}: put the shared data folder (Middlebury, "
+            "MiddEval3, KITTI, ETH3D scenes; see README 'Extras') there or set DISPEVAL_DATA "
+            "to its path"
+        )
         if os.environ.get("DISPEVAL_REQUIRE_DATA") == "1":
             pytest.fail(f"DISPEVAL_REQUIRE_DATA=1 but {reason}")
         pytest.skip(reason)
