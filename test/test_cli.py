@@ -270,3 +270,52 @@ def test_demo_runs_and_ranks_methods(capsys: pytest.CaptureFixture[str]) -> None
     assert set(document["models"]["groups"]) == set(methods)
     assert 1 in document["models"]["groups"].values()
     assert document["models"]["interpretation"]
+
+
+@pytest.fixture(scope="module")
+def bag_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``dispeval bag`` on the sample bag, three methods."""
+    from dispeval_ros.offline.sample import find_sample_bag
+
+    bag = find_sample_bag()
+    assert bag is not None
+    out = tmp_path_factory.mktemp("models") / "results"
+    args = ["bag", str(bag), "--gt", "/stereo/ground_truth/disparity", "--out", str(out)]
+    args += ["--camera-info", "/stereo/left/camera_info", "/stereo/right/camera_info", "--quiet"]
+    for method in ("bm_fast", "sgbm", "bm_smooth"):
+        args += ["--method", f"{method}=/stereo/{method}/disparity"]
+    assert main(args) == 0
+    return out
+
+
+def test_models_of_results_equal_their_summary_and_export_round_trips(
+    bag_results: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = json.loads((bag_results / "summary.json").read_text())
+    (sequence,) = summary["sequences"]
+    exported = tmp_path / "objectives.csv"
+    for source in (bag_results, bag_results / "results.sqlite", bag_results / "frames.csv"):
+        capsys.readouterr()
+        assert main(["models", str(source), "--json", "--export", str(exported)]) == 0
+        result = json.loads(capsys.readouterr().out)
+        assert result["groups"] == sequence["models"]["groups"]
+        assert result["reduced"] == sequence["models"]["reduced"]
+        header = exported.read_text().splitlines()[0].split(",")
+        assert header == ["method", *sequence["objectives"]]
+    assert main(["models", str(exported), "--json"]) == 0  # the export reads back
+    assert json.loads(capsys.readouterr().out)["groups"] == sequence["models"]["groups"]
+    assert main(["models", str(bag_results), "--objectives", "frame", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["groups"]
+
+
+def test_models_of_results_bad_input_is_one_line(
+    bag_results: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    alone = tmp_path / "frames.csv"
+    alone.write_bytes((bag_results / "frames.csv").read_bytes())
+    assert main(["models", str(alone)]) == 2
+    assert "no results.sqlite is beside it" in capsys.readouterr().err
+    assert main(["models", str(bag_results), "--objective-measures", "a99"]) == 2
+    assert "a99 were not computed" in capsys.readouterr().err
+    assert main(["models", str(tmp_path / "missing")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1

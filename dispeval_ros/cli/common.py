@@ -9,6 +9,7 @@ from pathlib import Path
 
 from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
 
 def comma_list(text: str) -> list[str]:
@@ -131,3 +132,20 @@ def objective_measures(measures: Sequence[str]) -> list[str]:
     """Measures that form model objectives: SZE and BMPRE where chosen, else all lower-is-better."""
     preferred = [m for m in ("sze", "bmpre") if m in measures]
     return preferred or [m for m in measures if m != "density"]
+
+
+def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--objectives`` and ``--objective-measures``: what the models compare over frames."""
+    parser.add_argument(
+        "--objectives",
+        choices=GRANULARITIES,
+        default="sequence",
+        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
+    )
+    parser.add_argument(
+        "--objective-measures",
+        nargs="+",
+        default=list(DEFAULT_OBJECTIVE_MEASURES),
+        metavar="M",
+        help=f"measures that form the objectives (default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)})",
+    )

@@ -10,6 +10,19 @@ import numpy as np
 
 from dispeval_ros.errors import InputError
 
+FRAMES_COLUMNS = ("sequence", "stamp", "method", "criterion", "n")
+"""The first columns of a results folder's ``frames.csv``."""
+
+
+def is_frames_csv(path: Path) -> bool:
+    """Whether ``path`` is a ``frames.csv`` of stored results (by its header)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as handle:
+            header = next(csv.reader(handle), [])
+    except (OSError, UnicodeDecodeError):
+        return False
+    return tuple(cell.strip() for cell in header[: len(FRAMES_COLUMNS)]) == FRAMES_COLUMNS
+
 
 def read_objectives_csv(path: Path) -> tuple[list[str], list[str], np.ndarray]:
     """Methods, objective names and the matrix of a scores CSV (empty cells are NaN)."""

@@ -8,7 +8,7 @@ is not rewarded with smaller sums. Sequence scores are sums of per-frame sums.
 from __future__ import annotations
 
 from collections.abc import Collection, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -42,6 +42,8 @@ class RunSummary:
     sequences: list[SequenceSummary]
     overall_objectives: list[str]
     overall: ModelResult | None
+    overall_matrix: np.ndarray | None = field(default=None, repr=False)
+    """Methods × ``overall_objectives`` (every sequence's objectives side by side)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (NaN left for the JSON writer to turn into null)."""
@@ -155,7 +157,26 @@ def summarize(
         if names:
             all_names.extend(names)
             all_blocks.append(block)
+    matrix = np.hstack(all_blocks) if all_blocks else None
     overall = None
-    if len(summaries) > 1 and all_blocks and len(methods) > 1:
-        overall = evaluate_models(methods, np.hstack(all_blocks))
-    return RunSummary(granularity, list(measures), summaries, all_names, overall)
+    if len(summaries) > 1 and matrix is not None and len(methods) > 1:
+        overall = evaluate_models(methods, matrix)
+    return RunSummary(granularity, list(measures), summaries, all_names, overall, matrix)
+
+
+
+def objective_table(
+    store: ScoreSource,
+    measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES,
+    granularity: str = "sequence",
+) -> tuple[list[str], list[str], np.ndarray]:
+    """Methods, objective names and matrix over every sequence, as the overall summary uses.
+
+    The objectives of each sequence come from the frames every method delivered (see
+    :func:`summarize`); this is the table ``dispeval models`` compares and exports.
+    """
+    summary = summarize(store, measures, granularity)
+    methods = store.methods()
+    if summary.overall_matrix is None:
+        return methods, [], np.empty((len(methods), 0))
+    return methods, summary.overall_objectives, summary.overall_matrix
