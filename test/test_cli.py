@@ -319,3 +319,39 @@ def test_models_of_results_bad_input_is_one_line(
     assert "a99 were not computed" in capsys.readouterr().err
     assert main(["models", str(tmp_path / "missing")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_tables_fit_the_terminal_and_carry_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("COLUMNS", "100")
+    gt = tmp_path / "gt.pfm"
+    write_pfm(gt, np.full((30, 40), 20.0, np.float32))
+    est = tmp_path / "est.pfm"
+    write_pfm(est, np.full((30, 40), 21.5, np.float32))
+    args = ["eval", "--gt", str(gt), "--est", f"a={est}", "--est", f"b={gt}"]
+    assert main([*args, "--focal", "500", "--baseline", "0.1"]) == 0
+    out = capsys.readouterr().out
+    tables = [line for line in out.splitlines() if line.startswith(("method", "---", "a ", "b "))]
+    assert tables
+    assert max(len(line) for line in tables) <= 100
+    for header in ("sze [m]", "sze_mean [m]", "bmp [%]", "mae [px]", "density [share]"):
+        assert header in out, header
+    assert main([*args, "--json"]) == 0  # no camera: SZE is relative, and counts are integers
+    document = json.loads(capsys.readouterr().out)
+    values = document["frames"][0]["criteria"]["all"]
+    assert values["n"] == 1200
+    assert isinstance(values["n"], int)
+    assert isinstance(values["bmp_count"], int)
+    assert main(args) == 0
+    assert "sze [relative (no camera)]" in capsys.readouterr().out
+
+
+def test_sequence_summaries_show_sze_per_point(
+    bag_results: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = json.loads((bag_results / "summary.json").read_text())
+    (sequence,) = summary["sequences"]
+    scores = sequence["scores"]["sgbm"]["all"]
+    assert scores["sze_mean"] == pytest.approx(scores["sze"] / scores["n"], rel=1e-12)
+    assert isinstance(scores["n"], int)

@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     print(f"missing estimates: {evaluator.missing}\n")
-    print(scores_text(results, measures, first.overlapping))
+    print(scores_text(results, measures, first.overlapping, first.relative))
     if model is not None:
         print("\n" + models_text(model[1], model[0]))
     return 0

@@ -2,31 +2,67 @@
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from dispeval_ros.cli.output import table
 from dispeval_ros.core import ModelResult
+from dispeval_ros.core.measures import measure_unit
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 
 
-def scores_text(
-    scores: Mapping[str, ScoreTable], measures: Sequence[str], overlapping: Sequence[str] = ()
+def measure_header(name: str, relative: bool = False) -> str:
+    """A measure's column header with its unit: ``sze [m]``, ``bmp [%]``."""
+    unit = measure_unit(name, relative)
+    return f"{name} [{unit}]" if unit else name
+
+
+def fitted_tables(
+    header: Sequence[str], rows: Sequence[Sequence[object]], keep: int, width: int | None = None
 ) -> str:
-    """One table per criterion: a row per method, a column per measure."""
+    """``table``, split by columns into several tables no wider than the terminal.
+
+    The first ``keep`` columns (method, n) are repeated in every part.
+    """
+    limit = width or max(80, shutil.get_terminal_size((100, 24)).columns)
+    parts: list[str] = []
+    start = keep
+    while start < len(header) or not parts:
+        end = start + 1
+        while end < len(header):
+            columns = [*range(keep), *range(start, end + 1)]
+            text = table([header[i] for i in columns], [[r[i] for i in columns] for r in rows])
+            if max(len(line) for line in text.splitlines()) > limit:
+                break
+            end += 1
+        columns = [*range(keep), *range(start, min(end, len(header)))]
+        parts.append(table([header[i] for i in columns], [[r[i] for i in columns] for r in rows]))
+        start = end
+    return "\n\n".join(parts)
+
+
+def scores_text(
+    scores: Mapping[str, ScoreTable],
+    measures: Sequence[str],
+    overlapping: Sequence[str] = (),
+    relative: bool = False,
+) -> str:
+    """One table per criterion (split to the terminal's width): a row per method."""
     blocks = []
     methods = list(scores)
     criteria = list(scores[methods[0]]) if methods else []
+    header = ["method", "n", *(measure_header(m, relative) for m in measures)]
     for criterion in criteria:
         rows = []
         for method in methods:
             values = scores[method][criterion]
-            rows.append([method, values["n"], *(values[m] for m in measures)])
+            rows.append([method, int(values["n"]), *(values[m] for m in measures)])
         title = f"criterion: {criterion}"
         if criterion in overlapping:
             title += "  (legacy Middlebury criterion: overlaps the others)"
-        blocks.append(title + "\n" + table(["method", "n", *measures], rows))
+        blocks.append(title + "\n" + fitted_tables(header, rows, keep=2))
     return "\n\n".join(blocks)
 
 
@@ -57,7 +93,8 @@ def models_text(result: ModelResult, objectives: Sequence[str]) -> str:
     )
 
 
-SEQUENCE_MEASURES = ("density", "bmp", "mae", "d1", "sze", "bmpre")
+SEQUENCE_MEASURES = ("density", "bmp", "mae", "d1", "sze", "sze_mean", "bmpre")
+"""Shown per sequence: SZE is a sum (its size grows with the points); sze_mean is per point."""
 
 
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
@@ -79,13 +116,14 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             shown = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
+            header = ["method", "n", *(measure_header(m, first.relative) for m in shown)]
             for criterion in first.criteria:
                 rows = [
-                    [m, s[criterion]["n"], *(s[criterion][x] for x in shown)]
+                    [m, int(s[criterion]["n"]), *(s[criterion][x] for x in shown)]
                     for m, s in sequence.scores.items()
                 ]
                 parts.append(f"\ncriterion: {criterion} (summed over the common frames)")
-                parts.append(table(["method", "n", *shown], rows))
+                parts.append(fitted_tables(header, rows, keep=2))
         if sequence.models is not None:
             parts.append("\n" + models_text(sequence.models, sequence.objectives))
     if summary.overall is not None:

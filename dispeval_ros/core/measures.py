@@ -36,6 +36,8 @@ DEFAULT_MEASURES = (
     "density",
 )
 HIGHER_IS_BETTER = ("density",)
+COUNT_MEASURES = ("n", "bmp_count")
+"""Values that count points: integers wherever they are written out."""
 _BAD = re.compile(r"^bad_(\d+(?:\.\d+)?)$")
 _QUANTILE = re.compile(r"^a(\d{1,2}(?:\.\d+)?)$")
 
@@ -53,6 +55,41 @@ def quantile_level(name: str) -> float | None:
         return None
     level = float(match.group(1))
     return level if 0 < level < 100 else None
+
+
+_UNITS = {
+    "n": "points",
+    "bmp": "%",
+    "bmp_count": "points",
+    "d1": "%",
+    "mae": "px",
+    "mse": "px²",
+    "rmse": "px",
+    "mre": "e/D",
+    "sze": "m",
+    "sze_mean": "m",
+    "bmpre": "Σ e/D",
+    "bmpre_mean": "e/D",
+    "density": "share",
+    "mae_z": "m",
+    "rmse_z": "m",
+    "absrel_z": "ratio",
+    "irmse": "1/km",
+}
+
+
+def measure_unit(name: str, relative: bool = False) -> str:
+    """The unit a measure's values are in, for tables, plots and reports ("" if none known).
+
+    ``relative``: SZE computed without a camera (``f·B := 1``), so not in metres.
+    """
+    if name in ("sze", "sze_mean") and relative:
+        return "relative (no camera)"
+    if bad_threshold(name) is not None:
+        return "%"
+    if quantile_level(name) is not None:
+        return "px"
+    return _UNITS.get(name, "")
 
 
 def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
@@ -194,8 +231,17 @@ class Scores(Mapping[str, Mapping[str, float]]):
         return criterion in self.criteria
 
     def to_dict(self) -> dict[str, dict[str, float]]:
-        """Plain nested dict (criterion → measure → value), JSON-ready apart from nan."""
-        return {criterion: dict(self[criterion]) for criterion in self.criteria}
+        """Plain nested dict (criterion → measure → value), JSON-ready apart from nan.
+
+        Counts (``n``, ``bmp_count``) are integers, as they are in the sums.
+        """
+        return {
+            criterion: {
+                name: int(value) if name in COUNT_MEASURES and math.isfinite(value) else value
+                for name, value in self[criterion].items()
+            }
+            for criterion in self.criteria
+        }
 
     @classmethod
     def combine(cls, parts: Sequence[Scores]) -> Scores:

@@ -34,7 +34,13 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from dispeval_ros.core import kernels as k
-from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, bad_threshold, quantile_level
+from dispeval_ros.core.measures import (
+    HIGHER_IS_BETTER,
+    SUM_FIELDS,
+    bad_threshold,
+    measure_unit,
+    quantile_level,
+)
 from dispeval_ros.core.models import ModelResult, evaluate_models
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
@@ -86,7 +92,11 @@ def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
     per-frame quantile; not summable, NaN over sequences). ``higher`` marks
     higher-is-better measures, negated in objectives.
     """
-    recipe: dict[str, Any] = {"name": name, "higher": name in HIGHER_IS_BETTER}
+    recipe: dict[str, Any] = {
+        "name": name,
+        "higher": name in HIGHER_IS_BETTER,
+        "unit": measure_unit(name),
+    }
     if name in _RATIOS:
         num, den, scale = _RATIOS[name]
         recipe.update(kind="ratio", num=num, den=den, scale=scale)
@@ -612,6 +622,7 @@ def error_thumbnails(
                     {
                         "sequence": sequence,
                         "stamp": str(stamp),
+                        "first_stamp": str(all_stamps[0]),
                         "index": all_stamps.index(stamp),
                         "images": images,
                     }

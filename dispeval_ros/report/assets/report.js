@@ -605,6 +605,24 @@
     return GROUP_COLOURS[(group - 1) % GROUP_COLOURS.length];
   }
 
+  /* A header stamp (ns, as a decimal string) as seconds since the first frame of its sequence,
+     with the stamp itself in seconds: "+1.300 s (1700000001.300 s)". Exact: BigInt. */
+  function stampText(stamps, local) {
+    const ns = BigInt(stamps[local]), first = BigInt(stamps[0]);
+    const seconds = function (v) {
+      const sign = v < 0n ? '-' : '', a = v < 0n ? -v : v;
+      return sign + (a / 1000000000n) + '.' + String((a % 1000000000n) / 1000000n).padStart(3, '0');
+    };
+    return '+' + seconds(ns - first) + ' s (' + seconds(ns) + ' s)';
+  }
+
+  /* The unit of a measure over the chosen methods (SZE without a camera is relative). */
+  function unitOf(recipe, methodIdx) {
+    if (recipe.name.indexOf('sze') === 0 &&
+        methodIdx.some(function (m) { return D.raw.relative[m]; })) return 'relative, no camera';
+    return recipe.unit || '';
+  }
+
   // ------------------------------------------------------------------ UI state
 
   const state = {
@@ -1181,8 +1199,9 @@
     const flag = series.flags[at];
     const status = ['', ' (missing: no scores for this frame)', ' (undefined)', ' (outlier)'][flag];
     ui.tooltip.textContent = D.methods[cs.methods[row]] + ' · ' + D.sequences[s].name +
-      ' frame ' + (local + 1) + ' (stamp ' + D.sequences[s].stamps[local] + ') · ' +
-      cs.recipe.name + ' = ' + fmt(series.values[at]) + status;
+      ' frame ' + (local + 1) + ' (' + stampText(D.sequences[s].stamps, local) + ') · ' +
+      cs.recipe.name + ' = ' + fmt(series.values[at]) +
+      (cs.recipe.unit ? ' ' + cs.recipe.unit : '') + status;
     ui.tooltip.hidden = false;
     ui.tooltip.style.left = Math.min(x + 12, rect.width - 260) + 'px';
     ui.tooltip.style.top = (y + 12) + 'px';
@@ -1198,10 +1217,18 @@
       ui.barsNote.textContent = 'Nothing to show for this selection.';
       return;
     }
-    ui.barsNote.textContent = recipe.name + ' over the frames every selected method delivered ' +
-      '(sums of the per-frame sums' + (seqs.length > 1 ? ', all selected sequences together' : '') +
-      '); bar colour = A* group.' + (recipe.kind === 'stored' ? ' Quantiles are not summable: undefined.' : '');
+    const unit = unitOf(recipe, built.methodIdx);
     const groups = built.models ? built.models.groupList : null;
+    // Every method in one group: colour the reduced set instead, so the bars still say something.
+    const oneGroup = groups && groups.every(function (g) { return g === groups[0]; });
+    const reduced = oneGroup && built.models.reduced ?
+      built.methods.map(function (name) { return built.models.reduced.indexOf(name) >= 0; }) : null;
+    ui.barsNote.textContent = recipe.name + (unit ? ' (' + unit + ')' : '') +
+      ' over the frames every selected method delivered ' +
+      '(sums of the per-frame sums' + (seqs.length > 1 ? ', all selected sequences together' : '') +
+      '); ' + (reduced ? 'every method is in A* group 1: dark bars = its reduced set.' :
+      'bar colour = A* group.') +
+      (recipe.kind === 'stored' ? ' Quantiles are not summable: undefined.' : '');
     for (const c of built.criteria) {
       const values = built.methodIdx.map(function (_, i) {
         let totals = null;
@@ -1213,11 +1240,12 @@
         }
         return totals ? totalMeasure(recipe, totals) : NaN;
       });
-      ui.bars.appendChild(barChart(D.criteria[c].name, built.methods, values, groups));
+      ui.bars.appendChild(barChart(D.criteria[c].name + ' · ' + recipe.name +
+        (unit ? ' [' + unit + ']' : ''), built.methods, values, groups, reduced));
     }
   }
 
-  function barChart(title, names, values, groups) {
+  function barChart(title, names, values, groups, reduced) {
     const n = names.length;
     const bar = Math.max(4, Math.min(28, Math.floor(560 / Math.max(1, n))));
     const left = 64, bottom = n <= 30 ? 90 : 16, top = 22;
@@ -1241,7 +1269,8 @@
       if (isFinite(v)) {
         const h = (Math.abs(v) / ymax) * plotHeight;
         g.appendChild(svg('rect', { x: x + 1, y: top + plotHeight - h, width: Math.max(1, bar - 2),
-          height: Math.max(0.5, h), fill: groups ? groupColour(groups[i]) : '#4575b4' }));
+          height: Math.max(0.5, h),
+          fill: reduced ? (reduced[i] ? '#1f4e8c' : '#a6bddb') : groups ? groupColour(groups[i]) : '#4575b4' }));
       } else {
         g.appendChild(svg('text', { x: x + bar / 2, y: top + plotHeight - 4, class: 'na',
           'text-anchor': 'middle' }, '×'));
@@ -1408,7 +1437,8 @@
     for (const frame of thumbs.frames) {
       const images = frame.images.filter(function (pair) { return selected.has(pair[0]); });
       const figure = el('div', { className: 'thumb-frame' }, [
-        el('h4', { text: frame.sequence + ' · frame ' + (frame.index + 1) + ' · stamp ' + frame.stamp }),
+        el('h4', { text: frame.sequence + ' · frame ' + (frame.index + 1) + ' · ' +
+          stampText([frame.first_stamp, frame.stamp], 1) }),
       ]);
       const grid = el('div', { className: 'thumb-grid' });
       for (const pair of images) {
