@@ -355,3 +355,19 @@ def test_sequence_summaries_show_sze_per_point(
     scores = sequence["scores"]["sgbm"]["all"]
     assert scores["sze_mean"] == pytest.approx(scores["sze"] / scores["n"], rel=1e-12)
     assert isinstance(scores["n"], int)
+
+
+def test_eval_with_only_legacy_criteria_says_why_there_is_no_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    gt = tmp_path / "gt.pfm"
+    write_pfm(gt, np.full((30, 40), 20.0, np.float32))
+    est = tmp_path / "est.pfm"
+    write_pfm(est, np.full((30, 40), 21.5, np.float32))
+    args = ["eval", "--gt", str(gt), "--est", f"a={est}", "--est", f"b={gt}", "--criteria", "legacy"]
+    assert main(args) == 0
+    assert "no A* Groups: the legacy criteria overlap" in capsys.readouterr().out
+    assert main([*args, "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["models"] is None
+    assert "overlap" in document["models_note"]

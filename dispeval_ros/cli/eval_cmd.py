@@ -135,7 +135,13 @@ def run(args: argparse.Namespace) -> int:
     first = next(iter(results.values()))
     comparable = [c for c in first.criteria if c not in first.overlapping]
     model = None
-    if len(results) > 1:
+    no_model = ""
+    if len(results) > 1 and not comparable:
+        no_model = (
+            "no A* Groups: the legacy criteria overlap (a point counts in several), so the models "
+            "need a partition; add --criteria all (or visibility, depth) to compare the methods"
+        )
+    elif len(results) > 1:
         methods, names, matrix = objective_matrix(results, objectives_from, comparable)
         model = (names, evaluate_models(methods, matrix))
     if args.json:
@@ -152,6 +158,9 @@ def run(args: argparse.Namespace) -> int:
         if model is not None:
             document["objectives"] = model[0]
             document["models"] = model[1].to_dict()
+        elif no_model:
+            document["models"] = None
+            document["models_note"] = no_model
         print_json(document)
         return 0
     print(
@@ -170,4 +179,6 @@ def run(args: argparse.Namespace) -> int:
     print(scores_text(results, measures, first.overlapping, first.relative))
     if model is not None:
         print("\n" + models_text(model[1], model[0]))
+    elif no_model:
+        print("\n" + no_model)
     return 0

@@ -8,7 +8,9 @@ from typing import TextIO
 
 
 class Progress:
-    """``[#####.....] 12/40 units  345 frames  210.3 frames/s``, redrawn in place on a terminal.
+    """``[#####.....] 12/40 slices  345 frames  210.3 frames/s``, redrawn in place on a terminal.
+
+    A slice is the unit of work: a few seconds of one recording, scored and stored together.
 
     When stderr is not a terminal (CI logs), it prints a plain line about every 10 %.
     """
@@ -22,13 +24,13 @@ class Progress:
         self._tty = self.stream.isatty()
 
     def update(self, done: int, total: int, frames: int) -> None:
-        """Show ``done`` of ``total`` units and the frame rate so far."""
+        """Show ``done`` of ``total`` slices and the frame rate so far."""
         if not self.enabled or total <= 0:
             return
         elapsed = max(time.perf_counter() - self.started, 1e-9)
         share = done / total
         text = (
-            f"{self.label} [{'#' * int(share * 24):<24}] {done}/{total} units  "
+            f"{self.label} [{'#' * int(share * 24):<24}] {done}/{total} slices  "
             f"{frames} frames  {frames / elapsed:.1f} frames/s"
         )
         if self._tty:
