@@ -99,3 +99,15 @@ class Ros:
         self.executor.shutdown()
         self.helper.destroy_node()
         self._rclpy.try_shutdown(context=self.context)
+
+
+def input_types(config: Any) -> dict[str, Any]:
+    """The rclpy message class of every input topic of a core configuration."""
+    sensor_msgs = ros_import("sensor_msgs.msg")
+    stereo_msgs = ros_import("stereo_msgs.msg")
+    types = {config.gt_topic: sensor_msgs.Image}
+    for info in (config.left_info_topic, config.right_info_topic):
+        if info:
+            types[info] = sensor_msgs.CameraInfo
+    types.update(dict.fromkeys(config.methods.values(), stereo_msgs.DisparityImage))
+    return types

@@ -8,7 +8,10 @@ same perturbed feed (a jittery clock, dropped frames, reordering) must give the 
 from __future__ import annotations
 
 import dataclasses
+import os
 import random
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -44,23 +47,19 @@ def sample_config(bag: Path) -> CoreConfig:
     )
 
 
-def bag_reference(bag: Path, out: Path) -> dict[tuple[int, str], Any]:
-    """What ``dispeval bag`` stores for ``bag``: (GT stamp, method) → Scores."""
-    config = sample_config(bag)
-    args = [
-        "bag",
-        str(bag),
-        "--gt",
-        GT_TOPIC,
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
-        "--out",
-        str(out),
-        "--quiet",
-    ]
+def topic_args(config: CoreConfig) -> list[str]:
+    """``--gt``, ``--camera-info`` and one ``--method`` per method, as the stream commands take."""
+    args = ["--gt", config.gt_topic]
+    if config.left_info_topic and config.right_info_topic:
+        args += ["--camera-info", config.left_info_topic, config.right_info_topic]
     for name, topic in config.methods.items():
         args += ["--method", f"{name}={topic}"]
+    return args
+
+
+def bag_reference(bag: Path, out: Path) -> dict[tuple[int, str], Any]:
+    """What ``dispeval bag`` stores for ``bag``: (GT stamp, method) → Scores."""
+    args = ["bag", str(bag), *topic_args(sample_config(bag)), "--out", str(out), "--quiet"]
     assert main(args) == 0
     with ResultsStore.open(out) as store:
         (sequence,) = store.sequences()
@@ -69,6 +68,18 @@ def bag_reference(bag: Path, out: Path) -> dict[tuple[int, str], Any]:
             for stamp in store.stamps(sequence)
             for method, scores in store.frame_scores(sequence, stamp).items()
         }
+
+
+def dispeval_process(*args: str, log: Path) -> subprocess.Popen[bytes]:
+    """A ``dispeval`` command as its own process (its own DDS participant), output to ``log``."""
+    env = {k: v for k, v in os.environ.items() if k not in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")}
+    with log.open("wb") as stream:
+        return subprocess.Popen(
+            [sys.executable, "-m", "dispeval_ros", *args],
+            stdout=stream,
+            stderr=subprocess.STDOUT,
+            env=env,
+        )
 
 
 def restamped(msg: Any, delta: int) -> Any:

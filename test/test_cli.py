@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sample_feed import sample_bag, sample_config, topic_args
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io import write_disparity_png16, write_pfm
@@ -274,16 +275,10 @@ def test_demo_runs_and_ranks_methods(capsys: pytest.CaptureFixture[str]) -> None
 
 @pytest.fixture(scope="module")
 def bag_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``dispeval bag`` on the sample bag, three methods."""
-    from dispeval_ros.offline.sample import find_sample_bag
-
-    bag = find_sample_bag()
-    assert bag is not None
+    """``dispeval bag`` on the sample bag."""
+    bag = sample_bag()
     out = tmp_path_factory.mktemp("models") / "results"
-    args = ["bag", str(bag), "--gt", "/stereo/ground_truth/disparity", "--out", str(out)]
-    args += ["--camera-info", "/stereo/left/camera_info", "/stereo/right/camera_info", "--quiet"]
-    for method in ("bm_fast", "sgbm", "bm_smooth"):
-        args += ["--method", f"{method}=/stereo/{method}/disparity"]
+    args = ["bag", str(bag), *topic_args(sample_config(bag)), "--out", str(out), "--quiet"]
     assert main(args) == 0
     return out
 

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
+from sample_feed import dispeval_process
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.dds import environment, wire
@@ -437,17 +438,6 @@ def reference(
         }
 
 
-def _dispeval(*args: str, log: Path) -> subprocess.Popen[bytes]:
-    env = {k: v for k, v in os.environ.items() if k not in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")}
-    with log.open("wb") as stream:
-        return subprocess.Popen(
-            [sys.executable, "-m", "dispeval_ros", *args],
-            stdout=stream,
-            stderr=subprocess.STDOUT,
-            env=env,
-        )
-
-
 def _assert_same_scores(rebuilt: Any, expected: Any, where: Any) -> None:
     np.testing.assert_array_equal(rebuilt.sums, expected.sums, err_msg=str(where))
     for criterion in expected.criteria:
@@ -498,7 +488,7 @@ def test_live_and_play_over_dds_match_dispeval_bag(
             a for name, topic in methods.items() for a in ("--method", f"{name}={topic}")
         ]
         live_log = tmp_path / "live.log"
-        live = _dispeval(
+        live = dispeval_process(
             "live",
             "--gt",
             GT_TOPIC,
@@ -521,7 +511,7 @@ def test_live_and_play_over_dds_match_dispeval_bag(
         assert wait_until(lambda: scores_reader.matched() > 0, 30), "live's scores not discovered"
 
         play_log = tmp_path / "play.log"
-        play = _dispeval(
+        play = dispeval_process(
             "play",
             str(sample),
             "--topics",

@@ -18,7 +18,6 @@ import importlib.util
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -30,7 +29,13 @@ import pytest
 from ros_support import ROS_REQUIRED, Ros, ros_import
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
-from sample_feed import bag_reference, sample_bag, sample_config
+from sample_feed import (
+    bag_reference,
+    dispeval_process,
+    sample_bag,
+    sample_config,
+    topic_args,
+)
 
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
@@ -81,18 +86,6 @@ def ros_factory() -> Iterator[Any]:
             harness.close()
 
 
-def dispeval(*args: str, log: Path) -> subprocess.Popen[bytes]:
-    """A ``dispeval`` command as its own process (its own DDS participant)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")}
-    with log.open("wb") as stream:
-        return subprocess.Popen(
-            [sys.executable, "-m", "dispeval_ros", *args],
-            stdout=stream,
-            stderr=subprocess.STDOUT,
-            env=env,
-        )
-
-
 def stop(process: subprocess.Popen[bytes] | None) -> None:
     if process is not None and process.poll() is None:
         process.kill()
@@ -131,7 +124,7 @@ def test_dds_player_to_rclpy_subscriber_is_byte_exact(ros_factory: Any, tmp_path
     ros = ros_factory(domain_id)
     received = {t: ros.collect(types[t], t, RELIABLE, raw=True) for t in topics}
     log = tmp_path / "play.log"
-    play = dispeval(
+    play = dispeval_process(
         "play",
         str(bag),
         "--topics",
@@ -179,16 +172,10 @@ def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(
     scores = ros.collect(
         diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.SCORES_QOS
     )
-    method_args = [a for m, t in config.methods.items() for a in ("--method", f"{m}={t}")]
     log = tmp_path / "live.log"
-    live = dispeval(
+    live = dispeval_process(
         "live",
-        "--gt",
-        GT_TOPIC,
-        *method_args,
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
+        *topic_args(config),
         "--out",
         str(tmp_path / "live"),
         "--queue-size",

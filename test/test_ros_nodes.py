@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros_support import Ros, ros_import
+from ros_support import Ros, input_types, ros_import
 from rosbags.typesys import Stores, get_typestore
 from sample_feed import (
     Stream,
@@ -619,13 +619,9 @@ def test_end_to_end_over_ros_equals_dispeval_bag(ros: Ros, tmp_path: Path) -> No
         right_camera_info=config.right_info_topic,
     )
     sensor = rclpy.qos.qos_profile_sensor_data
-    types = {
-        config.gt_topic: sensor_msgs.Image,
-        config.left_info_topic: sensor_msgs.CameraInfo,
-        config.right_info_topic: sensor_msgs.CameraInfo,
-        **dict.fromkeys(config.methods.values(), stereo_msgs.DisparityImage),
+    pubs = {
+        t: ros.helper.create_publisher(k, t, sensor) for t, k in input_types(config).items()
     }
-    pubs = {t: ros.helper.create_publisher(k, t, sensor) for t, k in types.items()}
     scores = ros.collect(
         diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.SCORES_QOS
     )
