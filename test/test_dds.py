@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
-from sample_feed import dispeval_process
+from sample_feed import bag_reference, dispeval_process
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.dds import environment, wire
@@ -420,22 +420,9 @@ def test_a_looping_stream_makes_new_sequences(
 
 
 @pytest.fixture(scope="module")
-def reference(
-    sample: Path, methods: dict[str, str], tmp_path_factory: pytest.TempPathFactory
-) -> dict[tuple[int, str], Any]:
+def reference(sample: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[int, str], Any]:
     """What ``dispeval bag`` stores for the sample bag: (GT stamp, method) → Scores."""
-    out = tmp_path_factory.mktemp("bag") / "out"
-    args = ["bag", str(sample), "--gt", GT_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO]
-    for name, topic in methods.items():
-        args += ["--method", f"{name}={topic}"]
-    assert main([*args, "--out", str(out), "--quiet"]) == 0
-    with ResultsStore.open(out) as store:
-        (sequence,) = store.sequences()
-        return {
-            (stamp, method): scores
-            for stamp in store.stamps(sequence)
-            for method, scores in store.frame_scores(sequence, stamp).items()
-        }
+    return bag_reference(sample, tmp_path_factory.mktemp("bag") / "out")
 
 
 def _assert_same_scores(rebuilt: Any, expected: Any, where: Any) -> None:

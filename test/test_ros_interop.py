@@ -86,6 +86,11 @@ def ros_factory() -> Iterator[Any]:
             harness.close()
 
 
+def dds_args(domain_id: int) -> list[str]:
+    """The DDS domain of a test, and loopback only."""
+    return ["--domain-id", str(domain_id), "--dds-config", "localhost"]
+
+
 def stop(process: subprocess.Popen[bytes] | None) -> None:
     if process is not None and process.poll() is None:
         process.kill()
@@ -132,10 +137,7 @@ def test_dds_player_to_rclpy_subscriber_is_byte_exact(ros_factory: Any, tmp_path
         "--wait-matched",
         "60",
         "--quiet",
-        "--domain-id",
-        str(domain_id),
-        "--dds-config",
-        "localhost",
+        *dds_args(domain_id),
         log=log,
     )
     try:
@@ -181,10 +183,7 @@ def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(
         "--queue-size",
         "64",
         "--quiet",
-        "--domain-id",
-        str(domain_id),
-        "--dds-config",
-        "localhost",
+        *dds_args(domain_id),
         log=log,
     )
     try:

@@ -483,6 +483,16 @@ def synthetic_scores(frames: int) -> list[tuple[int, dict[str, Any]]]:
     return result
 
 
+def summarizer_with_publisher(ros: Ros, **parameters: Any) -> tuple[Any, Any]:
+    """A summarizer node and a publisher of /dispeval/scores it has matched."""
+    node = ros.summarizer(**parameters)
+    publisher = ros.helper.create_publisher(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    )
+    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
+    return node, publisher
+
+
 def scores_array(stamp: int, frame: dict[str, Any]) -> Any:
     records = [scores_status(m, f"/t/{m}", s, None, stamp) for m, s in frame.items()]
     return convert.diagnostic_array(stamp, records)
@@ -557,11 +567,9 @@ def test_new_sequence_service_starts_a_sequence(ros: Ros, tmp_path: Path) -> Non
 
 def test_problem_statuses_are_not_stored(ros: Ros, tmp_path: Path) -> None:
     out = tmp_path / "results"
-    node = ros.summarizer(output_dir=str(out), summary_every=1, drain_timeout=0.0)
-    publisher = ros.helper.create_publisher(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    node, publisher = summarizer_with_publisher(
+        ros, output_dir=str(out), summary_every=1, drain_timeout=0.0
     )
-    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
     ((stamp, frame),) = synthetic_scores(1)
     records = [scores_status("good", "/t/good", frame["good"], None, stamp)]
     records.append(problem_status("bad", "/t/bad", "/t/bad at 0: size mismatch"))
@@ -699,11 +707,9 @@ def test_end_to_end_over_ros_equals_dispeval_bag(ros: Ros, tmp_path: Path) -> No
 def test_a_lagging_summarizer_counts_what_it_lost(ros: Ros, tmp_path: Path) -> None:
     """Arrays that never arrive (history overflow, lossy link) are counted, per method."""
     out = tmp_path / "results"
-    node = ros.summarizer(output_dir=str(out), summary_every=1000, drain_timeout=0.0)
-    publisher = ros.helper.create_publisher(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", summarizer_node.SCORES_QOS
+    node, publisher = summarizer_with_publisher(
+        ros, output_dir=str(out), summary_every=1000, drain_timeout=0.0
     )
-    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
     frames = synthetic_scores(5)
     matched_so_far = {"good": 0, "bad": 0}
     for index, (stamp, frame) in enumerate(frames, start=1):
