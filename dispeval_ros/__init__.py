@@ -24,8 +24,7 @@ from dispeval_ros.core import (
     pareto_front,
 )
 from dispeval_ros.errors import DispevalError
-
-__version__ = "0.1.0"
+from dispeval_ros.version import __version__
 
 __all__ = [
     "Camera",

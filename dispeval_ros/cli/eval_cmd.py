@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dispeval_ros.cli import common
+from dispeval_ros.cli import common, protocol_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Scores, evaluate_models
@@ -61,6 +61,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     common.add_evaluation_options(parser)
     common.add_camera_options(parser)
+    protocol_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run)
 
@@ -90,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
     """Read the inputs, score every estimate, print tables (and models) or JSON."""
     from dispeval_ros.io import load_scene, read_disparity, read_mask
 
+    if args.protocol is not None:
+        return protocol_eval.run(args)
     camera: Camera | None = None
     masks: dict[str, np.ndarray] = {}
     gt_right = None

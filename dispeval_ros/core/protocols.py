@@ -1,0 +1,717 @@
+"""Official benchmark protocols: MiddEval3, KITTI 2015, KITTI 2012 and ETH3D, exactly.
+
+Each protocol is a preset of regions, measures, thresholds, invalid-estimate handling and the
+official tool's arithmetic, so that a user's numbers can be put beside a leaderboard's. The
+project's own measures (:mod:`dispeval_ros.core.measures`) keep exact arithmetic; here every
+step the official tool does in ``float`` (float32) is done in float32 too, because that is
+what the leaderboard shows:
+
+- MiddEval3 SDK ``evaldisp``: ``err = |d − gt|`` in float32, the error sum ``serr`` accumulated
+  in a float32 in row-major order, the percentages stored in a float; invalid = ``INF`` only,
+  valid estimates clipped to ``[0, ndisp]``.
+- KITTI 2015 devkit (``evaluate_scene_flow.cpp``): ``e = |d_gt − d_ipol|`` and ``e/|d_gt|`` in
+  float32, the quotient compared with the double ``0.05`` (so an error of exactly 5 % is an
+  outlier); per-frame ratios in float32; pooled counters summed in float32 (they exceed 2²⁴).
+- KITTI 2012 devkit (``evaluate_stereo.cpp``): ``e`` in float32, the error sum in a float32 in
+  column-major order (``u`` outer, ``v`` inner), the summary a float32 mean of per-frame values.
+- ETH3D two-view evaluation: ``e = d − gt`` in float32, sums in double of float32 terms, the
+  quantile index ``floor(N·q)`` with ``N·q`` in float32, ``rms = sqrtf(…)``.
+
+KITTI's background interpolation leaves rows without any estimate between estimated rows at −1
+(and the whole map when nothing is estimated); :func:`kitti_interpolation` does the same.
+Nothing here reads files: the dataset trees are found by :mod:`dispeval_ros.io.benchmarks`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dispeval_ros.core import kernels
+from dispeval_ros.errors import ConfigurationError, ShapeMismatchError
+
+F32 = np.float32
+
+#: MiddEval3 training scenes and the weights of the weighted average of the training table:
+#: the radiometric / rectification variants of a scene that is also in the set (``E``, ``L``,
+#: ``P``) count half. Scenes not listed (e.g. test scenes) get weight 1.
+MIDDEVAL3_WEIGHTS: dict[str, float] = {
+    "Adirondack": 1.0,
+    "ArtL": 1.0,
+    "Jadeplant": 1.0,
+    "Motorcycle": 1.0,
+    "MotorcycleE": 0.5,
+    "Piano": 1.0,
+    "PianoL": 0.5,
+    "Pipes": 1.0,
+    "Playroom": 1.0,
+    "Playtable": 1.0,
+    "PlaytableP": 0.5,
+    "Recycle": 1.0,
+    "Shelves": 1.0,
+    "Teddy": 1.0,
+    "Vintage": 1.0,
+}
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """One benchmark's evaluation preset.
+
+    ``regions`` and ``columns`` are the official names in the official order; ``percent``
+    lists the columns shown as percentages; ``objectives`` are the lower-is-better columns the
+    A* Groups compare; ``summary`` says how frames are combined; ``float32`` where the official
+    tool's float32 arithmetic is reproduced.
+    """
+
+    name: str
+    title: str
+    tool: str
+    regions: tuple[str, ...]
+    columns: tuple[str, ...]
+    percent: tuple[str, ...]
+    objectives: tuple[str, ...]
+    summary: str
+    float32: str
+    settings: Mapping[str, object] = field(default_factory=dict)
+
+    def record(self) -> dict[str, object]:
+        """Everything that defines the protocol's numbers, as plain values."""
+        return {
+            "protocol": self.name,
+            "tool": self.tool,
+            "regions": list(self.regions),
+            "columns": list(self.columns),
+            "summary": self.summary,
+            "float32": self.float32,
+            "settings": dict(self.settings),
+        }
+
+    def sha256(self) -> str:
+        """Hash of :meth:`record` (canonical JSON), to name the configuration in results."""
+        return config_sha256(self.record())
+
+
+def config_sha256(record: Mapping[str, object]) -> str:
+    """sha256 of a configuration record as canonical JSON (sorted keys, no spaces)."""
+    text = json.dumps(record, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+_QUANTILES = (50, 90, 95, 99)
+_BAD = (0.5, 1.0, 2.0, 4.0)
+
+PROTOCOLS: dict[str, Protocol] = {
+    "middeval3": Protocol(
+        name="middeval3",
+        title="Middlebury MiddEval3",
+        tool="MiddEval3 SDK evaldisp (runeval)",
+        regions=("nonocc", "all"),
+        columns=(
+            *(f"bad {t:.1f}" for t in _BAD),
+            "invalid",
+            "avgErr",
+            "rms",
+            *(f"A{q}" for q in _QUANTILES),
+        ),
+        percent=(*(f"bad {t:.1f}" for t in _BAD), "invalid"),
+        objectives=(
+            *(f"bad {t:.1f}" for t in _BAD),
+            "avgErr",
+            "rms",
+            *(f"A{q}" for q in _QUANTILES),
+        ),
+        summary="weighted average over scenes (MIDDEVAL3_WEIGHTS)",
+        float32="err, the error sums (row-major) and the stored percentages are float32",
+        settings={
+            "bad_thresholds": list(_BAD),
+            "bad_counts_invalid": True,
+            "invalid": "+inf estimate",
+            "clip": "valid estimates to [0, ndisp] (scaled with the GT)",
+            "avgErr_rms_quantiles_over": "valid estimates",
+            "quantile_index": "floor(float32(N) * float32(q))",
+            "weights": MIDDEVAL3_WEIGHTS,
+        },
+    ),
+    "kitti2015": Protocol(
+        name="kitti2015",
+        title="KITTI 2015 stereo",
+        tool="KITTI 2015 devkit evaluate_scene_flow (disparityErrorsOutlier)",
+        regions=("noc", "occ"),
+        columns=(
+            "D1-bg",
+            "D1-fg",
+            "D1-all",
+            "D1-bg (est)",
+            "D1-fg (est)",
+            "D1-all (est)",
+            "density",
+        ),
+        percent=(
+            "D1-bg",
+            "D1-fg",
+            "D1-all",
+            "D1-bg (est)",
+            "D1-fg (est)",
+            "D1-all (est)",
+            "density",
+        ),
+        objectives=("D1-bg", "D1-fg", "D1-all"),
+        summary="pooled counts over frames (float32 accumulators, as the devkit)",
+        float32="e and e/|d| in float32 (compared with the double 0.05), ratios and pooled "
+        "counters in float32",
+        settings={
+            "abs_thresh": 3.0,
+            "rel_thresh": 0.05,
+            "interpolation": "devkit interpolateBackground (rows without estimate stay -1)",
+            "foreground": "obj_map > 0",
+        },
+    ),
+    "kitti2012": Protocol(
+        name="kitti2012",
+        title="KITTI 2012 stereo",
+        tool="KITTI 2012 devkit evaluate_stereo (disparityErrorsOutlier/Average)",
+        regions=("noc", "occ"),
+        columns=(
+            *(f"Out-{k}" for k in (2, 3, 4, 5)),
+            "Avg",
+            *(f"Out-{k} (est)" for k in (2, 3, 4, 5)),
+            "Avg (est)",
+            "density",
+        ),
+        percent=(
+            *(f"Out-{k}" for k in (2, 3, 4, 5)),
+            *(f"Out-{k} (est)" for k in (2, 3, 4, 5)),
+            "density",
+        ),
+        objectives=(*(f"Out-{k}" for k in (2, 3, 4, 5)), "Avg"),
+        summary="float32 mean of the per-frame values (statMean)",
+        float32="e in float32, the error sum in float32 in column-major order, the means in float32",
+        settings={
+            "thresholds": [2, 3, 4, 5],
+            "interpolation": "devkit interpolateBackground (rows without estimate stay -1)",
+        },
+    ),
+    "eth3d": Protocol(
+        name="eth3d",
+        title="ETH3D two-view",
+        tool="ETH3D two-view-evaluation (ComputeMetrics)",
+        regions=("nonocc", "all"),
+        columns=(
+            *(f"bad {t:.1f}" for t in _BAD),
+            "avgerr",
+            "rms",
+            *(f"A{q}" for q in _QUANTILES),
+            "coverage",
+        ),
+        percent=(*(f"bad {t:.1f}" for t in _BAD), "coverage"),
+        objectives=(
+            *(f"bad {t:.1f}" for t in _BAD),
+            "avgerr",
+            "rms",
+            *(f"A{q}" for q in _QUANTILES),
+        ),
+        summary="mean of the per-frame values",
+        float32="e = d - gt in float32, squared errors in float32 summed in double, "
+        "rms = sqrtf, quantile index floor(float32(N) * q_f)",
+        settings={
+            "bad_thresholds": list(_BAD),
+            "estimate_valid": "finite and -width <= d <= width",
+            "gt_valid": "finite",
+            "measures_over": "pixels with an estimate",
+        },
+    ),
+}
+
+
+def get_protocol(name: str) -> Protocol:
+    """The protocol called ``name`` or a one-line error listing the known ones."""
+    try:
+        return PROTOCOLS[name]
+    except KeyError:
+        raise ConfigurationError(
+            f"unknown protocol '{name}'; choose from {', '.join(PROTOCOLS)}"
+        ) from None
+
+
+@dataclass
+class FrameResult:
+    """One method on one frame: ``values[region][column]`` in leaderboard units.
+
+    ``counts`` holds what the summary combines (the raw counters of KITTI 2015), ``notes``
+    what could not be evaluated and why (a missing ``disp_noc``, no ``obj_map``...).
+    """
+
+    frame: str
+    values: dict[str, dict[str, float]]
+    counts: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready form (nan for the JSON writer to turn into null)."""
+        return {"frame": self.frame, "regions": self.values, "notes": self.notes}
+
+
+# ------------------------------------------------------------------------------ helpers
+
+
+def _same_shape(gt: np.ndarray, other: np.ndarray, what: str) -> None:
+    if other.shape != gt.shape:
+        raise ShapeMismatchError(
+            f"{what} is {other.shape[1]}×{other.shape[0]} but the ground truth is "
+            f"{gt.shape[1]}×{gt.shape[0]}"
+        )
+
+
+def float32_sum(values: np.ndarray) -> np.float32:
+    """Sequential float32 sum (``float s = 0; s += v`` in the given order), not pairwise."""
+    if values.size == 0:
+        return F32(0.0)
+    return np.add.accumulate(values.astype(F32, copy=False), dtype=F32)[-1]
+
+
+def float64_sum(values: np.ndarray) -> float:
+    """Sequential double sum (``double s = 0; s += v``) of the given terms in order."""
+    if values.size == 0:
+        return 0.0
+    return float(np.add.accumulate(values.astype(np.float64), dtype=np.float64)[-1])
+
+
+def quantile_index(size: int, level: float) -> int:
+    """``floor(size * level_f)`` with the product in float32, as ETH3D indexes its quantiles."""
+    return math.floor(F32(F32(size) * F32(level)))
+
+
+def kitti_interpolation(estimate: np.ndarray) -> np.ndarray:
+    """The KITTI devkits' ``interpolateBackground`` of an estimate (invalid: not finite or ≤ 0).
+
+    Per row, gaps between two valid pixels take the smaller of the two, then the row is
+    extended to both ends; per column, the first and last filled rows are copied upwards and
+    downwards. A row with no valid pixel between filled rows stays −1, as in the devkit.
+    """
+    estimate = np.ascontiguousarray(estimate, dtype=F32)
+    coded = np.empty_like(estimate)
+    kernels.normalise_estimate(estimate, -math.inf, math.inf, kernels.POLICY_INTERPOLATE, coded)
+    filled = np.abs(coded)
+    with np.errstate(invalid="ignore"):
+        has_valid = (np.isfinite(estimate) & (estimate > 0)).any(axis=1)
+    rows = np.flatnonzero(has_valid)
+    if rows.size == 0:
+        filled[:] = -1.0
+        return filled
+    inner = np.zeros(estimate.shape[0], bool)
+    inner[rows[0] : rows[-1] + 1] = True
+    filled[inner & ~has_valid] = -1.0
+    return filled
+
+
+def _estimate_valid(estimate: np.ndarray) -> np.ndarray:
+    """KITTI: an estimate is valid when its PNG value is > 0 (finite and > 0 here)."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(estimate) & (estimate > 0)
+
+
+def _ratio32(numerator: float, denominator: float) -> float:
+    """``numerator / max(denominator, 1.0f)`` in float32, as the KITTI devkits normalise."""
+    return float(F32(numerator) / max(F32(denominator), F32(1.0)))
+
+
+# ---------------------------------------------------------------------------- MiddEval3
+
+
+def middeval3_frame(
+    frame: str,
+    gt: np.ndarray,
+    estimate: np.ndarray,
+    nonocc: np.ndarray | None,
+    ndisp: float | None,
+) -> FrameResult:
+    """MiddEval3 ``evaldisp`` over ``nonocc`` (mask value 255) and ``all`` (known GT).
+
+    ``estimate`` may be 1/2 or 1/4 of the GT size (upsampled and scaled as the SDK does);
+    ``ndisp`` (calib.txt) bounds valid estimates, ``None`` = the SDK default 99999.
+    """
+    gt = np.asarray(gt, dtype=F32)
+    estimate = np.asarray(estimate, dtype=F32)
+    scale = gt.shape[1] // max(estimate.shape[1], 1)
+    if (
+        scale not in (1, 2, 4)
+        or estimate.shape[0] * scale != gt.shape[0]
+        or (estimate.shape[1] * scale != gt.shape[1])
+    ):
+        raise ShapeMismatchError(
+            f"the estimate is {estimate.shape[1]}×{estimate.shape[0]} but the ground truth is "
+            f"{gt.shape[1]}×{gt.shape[0]}; MiddEval3 needs the GT size exactly 1, 2 or 4 times it"
+        )
+    d = np.repeat(np.repeat(estimate, scale, axis=0), scale, axis=1) * F32(scale)
+    known = ~np.isposinf(gt)
+    valid = ~np.isposinf(d)
+    maxd = F32(scale * (99999 if ndisp is None else ndisp))
+    with np.errstate(invalid="ignore"):
+        d = np.where(valid, np.clip(d, F32(0.0), maxd), d).astype(F32)
+        error = np.abs(d - gt).astype(F32)
+    regions: dict[str, np.ndarray] = {}
+    if nonocc is not None:
+        _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
+        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+    regions["all"] = known
+    result = FrameResult(frame, {})
+    if nonocc is None:
+        result.notes.append("nonocc: no mask0nocc.png")
+    for region, where in regions.items():
+        result.values[region] = _middeval3_region(error, valid, where)
+    return result
+
+
+def _middeval3_region(error: np.ndarray, valid: np.ndarray, where: np.ndarray) -> dict[str, float]:
+    n = int(np.count_nonzero(where))
+    scored = where & valid
+    invalid = n - int(np.count_nonzero(scored))
+    errors = error[scored]  # row-major: the SDK's loop order
+    values: dict[str, float] = {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for threshold in _BAD:
+            bad = int(np.count_nonzero(errors > F32(threshold)))
+            values[f"bad {threshold:.1f}"] = (
+                float(F32(100.0 * (bad + invalid) / n)) if n else math.nan
+            )
+        values["invalid"] = float(F32(100.0 * invalid / n)) if n else math.nan
+        used = n - invalid
+        values["avgErr"] = float(float32_sum(errors) / F32(used)) if used else math.nan
+        squared = (errors * errors).astype(F32)
+        values["rms"] = float(np.sqrt(float32_sum(squared) / F32(used))) if used else math.nan
+    values.update(_quantiles(errors))
+    return values
+
+
+def _quantiles(errors: np.ndarray) -> dict[str, float]:
+    """A50…A99: the sorted errors at ``floor(N·q)`` (float32 product), NaN without errors."""
+    if errors.size == 0:
+        return {f"A{q}": math.nan for q in _QUANTILES}
+    positions = {
+        q: min(quantile_index(errors.size, q / 100.0), errors.size - 1) for q in _QUANTILES
+    }
+    ordered = np.partition(errors, sorted(set(positions.values())))
+    return {f"A{q}": float(ordered[p]) for q, p in positions.items()}
+
+
+def middeval3_summary(
+    frames: Sequence[FrameResult], weights: Mapping[str, float] | None = None
+) -> dict[str, dict[str, float]]:
+    """Weighted average of every column over the frames (``MIDDEVAL3_WEIGHTS`` by default)."""
+    table = MIDDEVAL3_WEIGHTS if weights is None else weights
+    return _weighted_mean(frames, [table.get(f.frame, 1.0) for f in frames])
+
+
+def _weighted_mean(
+    frames: Sequence[FrameResult], weights: Sequence[float]
+) -> dict[str, dict[str, float]]:
+    summary: dict[str, dict[str, float]] = {}
+    regions = list(dict.fromkeys(r for f in frames for r in f.values))
+    for region in regions:
+        present = [
+            (f.values[region], w)
+            for f, w in zip(frames, weights, strict=True)
+            if region in f.values
+        ]
+        total = sum(w for _, w in present)
+        columns = list(dict.fromkeys(c for values, _ in present for c in values))
+        summary[region] = {
+            column: sum(values.get(column, math.nan) * w for values, w in present) / total
+            if total
+            else math.nan
+            for column in columns
+        }
+    return summary
+
+
+# --------------------------------------------------------------------------- KITTI 2015
+
+_D1_COUNTERS = ("bg", "fg", "all")
+
+
+def kitti2015_frame(
+    frame: str,
+    gt_occ: np.ndarray,
+    gt_noc: np.ndarray | None,
+    estimate: np.ndarray,
+    obj_map: np.ndarray | None,
+) -> FrameResult:
+    """D1 per region (``noc`` from ``disp_noc_0``, ``occ`` from ``disp_occ_0``), frame values."""
+    gt_occ = np.asarray(gt_occ, dtype=F32)
+    estimate = np.asarray(estimate, dtype=F32)
+    _same_shape(gt_occ, estimate, "the estimate")
+    interpolated = kitti_interpolation(estimate)
+    has_estimate = _estimate_valid(estimate)
+    foreground = None
+    if obj_map is not None:
+        _same_shape(gt_occ, np.asarray(obj_map), "the object map (obj_map)")
+        foreground = np.asarray(obj_map) > 0
+    result = FrameResult(frame, {})
+    grounds = {"noc": gt_noc, "occ": gt_occ}
+    if gt_noc is None:
+        result.notes.append("noc: no disp_noc_0 ground truth")
+    if foreground is None:
+        result.notes.append("D1-bg/D1-fg: no obj_map (every pixel counted as background)")
+    for region, given in grounds.items():
+        if given is None:
+            continue
+        gt = np.asarray(given, dtype=F32)
+        _same_shape(gt_occ, gt, f"the {region} ground truth")
+        counts = _d1_counts(gt, interpolated, has_estimate, foreground)
+        result.counts[region] = counts
+        result.values[region] = kitti2015_values(counts, foreground is not None)
+    return result
+
+
+def _d1_counts(
+    gt: np.ndarray,
+    interpolated: np.ndarray,
+    has_estimate: np.ndarray,
+    foreground: np.ndarray | None,
+) -> list[float]:
+    """The devkit's 12 counters: (errors, pixels, errors est, pixels est) × (bg, fg, all)."""
+    valid = gt > 0
+    error = np.abs(gt - interpolated).astype(F32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = (error / np.abs(gt)).astype(F32)
+        outlier = valid & (error > 3.0) & (relative.astype(np.float64) > 0.05)
+    fg = np.zeros(gt.shape, bool) if foreground is None else foreground
+    counts: list[float] = []
+    for part in (valid & ~fg, valid & fg, valid):
+        counts += [
+            int(np.count_nonzero(outlier & part)),
+            int(np.count_nonzero(part)),
+            int(np.count_nonzero(outlier & part & has_estimate)),
+            int(np.count_nonzero(part & has_estimate)),
+        ]
+    return counts
+
+
+def kitti2015_values(counts: Sequence[float], with_foreground: bool = True) -> dict[str, float]:
+    """D1 columns (percent) from the 12 counters, with the devkit's float32 ratios."""
+    values: dict[str, float] = {}
+    for index, part in enumerate(_D1_COUNTERS):
+        errors, pixels, errors_est, pixels_est = counts[4 * index : 4 * index + 4]
+        unknown = part != "all" and not with_foreground
+        values[f"D1-{part}"] = math.nan if unknown else 100.0 * _ratio32(errors, pixels)
+        values[f"D1-{part} (est)"] = (
+            math.nan if unknown else 100.0 * _ratio32(errors_est, pixels_est)
+        )
+    values["density"] = 100.0 * _ratio32(counts[11], counts[9])
+    return {column: values[column] for column in PROTOCOLS["kitti2015"].columns}
+
+
+def kitti2015_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
+    """Pooled D1: the counters of every frame summed in float32 accumulators, in frame order."""
+    summary: dict[str, dict[str, float]] = {}
+    with_foreground = all("D1-bg/D1-fg" not in " ".join(f.notes) for f in frames)
+    for region in PROTOCOLS["kitti2015"].regions:
+        parts = [f.counts[region] for f in frames if region in f.counts]
+        if not parts:
+            continue
+        totals = np.zeros(12, dtype=F32)
+        for counts in parts:
+            totals = (totals + np.asarray(counts, dtype=F32)).astype(F32)
+        summary[region] = kitti2015_values([float(v) for v in totals], with_foreground)
+    return summary
+
+
+# --------------------------------------------------------------------------- KITTI 2012
+
+
+def kitti2012_frame(
+    frame: str, gt_occ: np.ndarray, gt_noc: np.ndarray | None, estimate: np.ndarray
+) -> FrameResult:
+    """Out-2…5 and Avg per region, over all GT pixels and over estimated ones, density."""
+    gt_occ = np.asarray(gt_occ, dtype=F32)
+    estimate = np.asarray(estimate, dtype=F32)
+    _same_shape(gt_occ, estimate, "the estimate")
+    interpolated = kitti_interpolation(estimate)
+    has_estimate = _estimate_valid(estimate)
+    result = FrameResult(frame, {})
+    if gt_noc is None:
+        result.notes.append("noc: no disp_noc ground truth")
+    for region, given in (("noc", gt_noc), ("occ", gt_occ)):
+        if given is None:
+            continue
+        gt = np.asarray(given, dtype=F32)
+        _same_shape(gt_occ, gt, f"the {region} ground truth")
+        result.values[region] = _kitti2012_region(gt, interpolated, has_estimate)
+    return result
+
+
+def _kitti2012_region(
+    gt: np.ndarray, interpolated: np.ndarray, has_estimate: np.ndarray
+) -> dict[str, float]:
+    valid = gt > 0
+    error = np.abs(gt - interpolated).astype(F32)
+    # the devkit loops u (columns) outside, v (rows) inside: transpose for that order
+    by_column = error.T[valid.T]
+    by_column_est = error.T[(valid & has_estimate).T]
+    n, n_est = by_column.size, by_column_est.size
+    values: dict[str, float] = {}
+    for k in (2, 3, 4, 5):
+        values[f"Out-{k}"] = 100.0 * _ratio32(int(np.count_nonzero(by_column > F32(k))), n)
+    values["Avg"] = float(float32_sum(by_column) / max(F32(n), F32(1.0)))
+    for k in (2, 3, 4, 5):
+        # the devkit leaves the counts unnormalised when no pixel has an estimate
+        count = int(np.count_nonzero(by_column_est > F32(k)))
+        values[f"Out-{k} (est)"] = 100.0 * (_ratio32(count, n_est) if n_est else float(count))
+    values["Avg (est)"] = float(float32_sum(by_column_est) / max(F32(n_est), F32(1.0)))
+    values["density"] = 100.0 * _ratio32(n_est, n)
+    return {column: values[column] for column in PROTOCOLS["kitti2012"].columns}
+
+
+def kitti2012_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
+    """``statMean``: per column, the float32 sum of the per-frame values over float32(count)."""
+    summary: dict[str, dict[str, float]] = {}
+    for region in PROTOCOLS["kitti2012"].regions:
+        rows = [f.values[region] for f in frames if region in f.values]
+        if not rows:
+            continue
+        summary[region] = {}
+        for column in PROTOCOLS["kitti2012"].columns:
+            # the devkit averages fractions; the percent scale is applied after
+            scale = 100.0 if column in PROTOCOLS["kitti2012"].percent else 1.0
+            terms = np.array([F32(row[column] / scale) for row in rows], dtype=F32)
+            summary[region][column] = scale * float(float32_sum(terms) / F32(len(rows)))
+    return summary
+
+
+# -------------------------------------------------------------------------------- ETH3D
+
+
+def eth3d_frame(
+    frame: str, gt: np.ndarray, estimate: np.ndarray, nonocc: np.ndarray | None
+) -> FrameResult:
+    """ETH3D ``ComputeMetrics`` for ``nonocc`` (mask value 255) and ``all`` (finite GT)."""
+    gt = np.asarray(gt, dtype=F32)
+    estimate = np.asarray(estimate, dtype=F32)
+    _same_shape(gt, estimate, "the estimate")
+    width = gt.shape[1]
+    known = np.isfinite(gt)
+    with np.errstate(invalid="ignore"):
+        estimated = np.isfinite(estimate) & (estimate <= width) & (estimate >= -width)
+        signed = (estimate - gt).astype(F32)
+    result = FrameResult(frame, {})
+    regions: dict[str, np.ndarray] = {}
+    if nonocc is not None:
+        _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
+        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+    else:
+        result.notes.append("nonocc: no mask0nocc.png")
+    regions["all"] = known
+    for region, where in regions.items():
+        result.values[region] = _eth3d_region(
+            signed[where & estimated], int(np.count_nonzero(where))
+        )
+    return result
+
+
+def _eth3d_region(signed: np.ndarray, n_gt: int) -> dict[str, float]:
+    size = signed.size
+    values: dict[str, float] = {}
+    if size == 0:
+        values.update({f"bad {t:.1f}": 100.0 for t in _BAD})
+        values.update({"avgerr": math.inf, "rms": math.inf})
+        values.update({f"A{q}": math.inf for q in _QUANTILES})
+        values["coverage"] = 0.0 if n_gt else math.nan
+        return values
+    absolute = np.abs(signed).astype(F32)
+    for threshold in _BAD:
+        values[f"bad {threshold:.1f}"] = (
+            100.0 * int(np.count_nonzero(absolute > F32(threshold))) / size
+        )
+    values["avgerr"] = float64_sum(absolute) / size
+    squared = (signed * signed).astype(F32)
+    values["rms"] = float(np.sqrt(F32(float64_sum(squared) / size)))
+    ordered = np.sort(absolute)
+    for q in _QUANTILES:
+        values[f"A{q}"] = float(ordered[quantile_index(size, q / 100.0)])
+    values["coverage"] = 100.0 * (1.0 if size == n_gt else size / n_gt)
+    return values
+
+
+def eth3d_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
+    """Mean of every column over the frames."""
+    return _weighted_mean(frames, [1.0] * len(frames))
+
+
+# --------------------------------------------------------------------------- dispatch
+
+
+@dataclass(frozen=True)
+class FrameData:
+    """The arrays one protocol frame needs (what a dataset tree gives)."""
+
+    frame: str
+    gt: np.ndarray
+    gt_noc: np.ndarray | None = None
+    nonocc_mask: np.ndarray | None = None
+    obj_map: np.ndarray | None = None
+    ndisp: float | None = None
+
+
+def evaluate_frame(protocol: Protocol | str, data: FrameData, estimate: np.ndarray) -> FrameResult:
+    """One estimate on one frame under ``protocol``."""
+    chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    if chosen.name == "middeval3":
+        return middeval3_frame(data.frame, data.gt, estimate, data.nonocc_mask, data.ndisp)
+    if chosen.name == "kitti2015":
+        return kitti2015_frame(data.frame, data.gt, data.gt_noc, estimate, data.obj_map)
+    if chosen.name == "kitti2012":
+        return kitti2012_frame(data.frame, data.gt, data.gt_noc, estimate)
+    return eth3d_frame(data.frame, data.gt, estimate, data.nonocc_mask)
+
+
+def summarize_frames(
+    protocol: Protocol | str, frames: Sequence[FrameResult]
+) -> dict[str, dict[str, float]]:
+    """The benchmark's summary over ``frames`` (its own way of combining them)."""
+    chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    if not frames:
+        raise ConfigurationError("no frame to summarise")
+    if chosen.name == "middeval3":
+        return middeval3_summary(frames)
+    if chosen.name == "kitti2015":
+        return kitti2015_summary(frames)
+    if chosen.name == "kitti2012":
+        return kitti2012_summary(frames)
+    return eth3d_summary(frames)
+
+
+def objective_matrix(
+    protocol: Protocol | str, results: Mapping[str, Sequence[FrameResult]]
+) -> tuple[list[str], list[str], np.ndarray]:
+    """Methods, objective names (``frame/region/column``) and values, for the A* Groups.
+
+    The objectives are the protocol's lower-is-better columns in every region of every
+    frame that all methods were scored on (a missing value counts as worst).
+    """
+    chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    methods = list(results)
+    names: list[str] = []
+    columns: list[list[float]] = []
+    by_frame = {m: {f.frame: f for f in results[m]} for m in methods}
+    frames = list(dict.fromkeys(f.frame for m in methods for f in results[m]))
+    for frame in frames:
+        for region in chosen.regions:
+            for column in chosen.objectives:
+                values = []
+                for method in methods:
+                    found = by_frame[method].get(frame)
+                    values.append(
+                        found.values.get(region, {}).get(column, math.nan) if found else math.nan
+                    )
+                if all(math.isnan(v) for v in values):
+                    continue
+                names.append(f"{frame}/{region}/{column}")
+                columns.append(values)
+    matrix = np.array(columns, dtype=np.float64).T if columns else np.zeros((len(methods), 0))
+    return methods, names, matrix
