@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import kernels
+from dispeval_ros.core.evaluator import as_disparity
 from dispeval_ros.errors import ConfigurationError, ShapeMismatchError
 
 F32 = np.float32
@@ -336,8 +337,8 @@ def middeval3_frame(
     ``estimate`` may be 1/2 or 1/4 of the GT size (upsampled and scaled as the SDK does);
     ``ndisp`` (calib.txt) bounds valid estimates, ``None`` = the SDK default 99999.
     """
-    gt = np.asarray(gt, dtype=F32)
-    estimate = np.asarray(estimate, dtype=F32)
+    gt = as_disparity(gt, "the ground truth")
+    estimate = as_disparity(estimate, "the estimate")
     scale = gt.shape[1] // max(estimate.shape[1], 1)
     if (
         scale not in (1, 2, 4)
@@ -443,8 +444,8 @@ def kitti2015_frame(
     obj_map: np.ndarray | None,
 ) -> FrameResult:
     """D1 per region (``noc`` from ``disp_noc_0``, ``occ`` from ``disp_occ_0``), frame values."""
-    gt_occ = np.asarray(gt_occ, dtype=F32)
-    estimate = np.asarray(estimate, dtype=F32)
+    gt_occ = as_disparity(gt_occ, "the ground truth")
+    estimate = as_disparity(estimate, "the estimate")
     _same_shape(gt_occ, estimate, "the estimate")
     interpolated = kitti_interpolation(estimate)
     has_estimate = _estimate_valid(estimate)
@@ -461,7 +462,7 @@ def kitti2015_frame(
     for region, given in grounds.items():
         if given is None:
             continue
-        gt = np.asarray(given, dtype=F32)
+        gt = as_disparity(given, f"the {region} ground truth")
         _same_shape(gt_occ, gt, f"the {region} ground truth")
         counts = _d1_counts(gt, interpolated, has_estimate, foreground)
         result.counts[region] = counts
@@ -529,8 +530,8 @@ def kitti2012_frame(
     frame: str, gt_occ: np.ndarray, gt_noc: np.ndarray | None, estimate: np.ndarray
 ) -> FrameResult:
     """Out-2…5 and Avg per region, over all GT pixels and over estimated ones, density."""
-    gt_occ = np.asarray(gt_occ, dtype=F32)
-    estimate = np.asarray(estimate, dtype=F32)
+    gt_occ = as_disparity(gt_occ, "the ground truth")
+    estimate = as_disparity(estimate, "the estimate")
     _same_shape(gt_occ, estimate, "the estimate")
     interpolated = kitti_interpolation(estimate)
     has_estimate = _estimate_valid(estimate)
@@ -540,7 +541,7 @@ def kitti2012_frame(
     for region, given in (("noc", gt_noc), ("occ", gt_occ)):
         if given is None:
             continue
-        gt = np.asarray(given, dtype=F32)
+        gt = as_disparity(given, f"the {region} ground truth")
         _same_shape(gt_occ, gt, f"the {region} ground truth")
         result.values[region] = _kitti2012_region(gt, interpolated, has_estimate)
     return result
@@ -591,8 +592,8 @@ def eth3d_frame(
     frame: str, gt: np.ndarray, estimate: np.ndarray, nonocc: np.ndarray | None
 ) -> FrameResult:
     """ETH3D ``ComputeMetrics`` for ``nonocc`` (mask value 255) and ``all`` (finite GT)."""
-    gt = np.asarray(gt, dtype=F32)
-    estimate = np.asarray(estimate, dtype=F32)
+    gt = as_disparity(gt, "the ground truth")
+    estimate = as_disparity(estimate, "the estimate")
     _same_shape(gt, estimate, "the estimate")
     width = gt.shape[1]
     known = np.isfinite(gt)
