@@ -163,3 +163,35 @@ def report_text(run_result: BenchmarkRun, per_frame: bool = True) -> str:
     if run_result.models is not None:
         blocks.append(models_text(run_result.models, run_result.objectives))
     return "\n\n".join(blocks)
+
+
+def add_stream_option(parser: argparse.ArgumentParser) -> None:
+    """``--protocol`` for stream commands: a benchmark's measures as a preset."""
+    parser.add_argument(
+        "--protocol",
+        choices=list(PROTOCOLS),
+        help="use a benchmark's measures, thresholds and invalid-estimate handling over 'all' "
+        "(replaces --criteria, --measures, --missing, --objective-measures; exact arithmetic: "
+        "bags carry no official masks, see README 'Reproduce a benchmark')",
+    )
+
+
+def apply_stream_preset(args: argparse.Namespace) -> dict[str, object]:
+    """Set the options a ``--protocol`` preset fixes; the preset's record (empty without one)."""
+    if getattr(args, "protocol", None) is None:
+        return {}
+    from dispeval_ros.core.protocols import stream_preset
+
+    preset = stream_preset(args.protocol)
+    args.criteria = list(preset.criteria)
+    args.measures = list(preset.measures)
+    args.missing = preset.missing
+    args.objective_measures = [m for m in preset.measures if m != "density"]
+    return {"protocol": args.protocol, "protocol_preset": preset.record()}
+
+
+def preset_note(protocol: str) -> str:
+    """One line saying what a stream preset does not reproduce of the official tool."""
+    from dispeval_ros.core.protocols import stream_preset
+
+    return f"protocol {protocol} (stream preset): {stream_preset(protocol).differs}"
