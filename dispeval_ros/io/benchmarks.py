@@ -29,7 +29,12 @@ from dispeval_ros.io.files import read_disparity, read_mask
 from dispeval_ros.io.scenes import load_scene
 
 _NDISP = re.compile(r"(?m)^\s*ndisp\s*=\s*([0-9.]+)")
-_KITTI_GT = {"kitti2015": ("disp_occ_0", "disp_noc_0"), "kitti2012": ("disp_occ", "disp_noc")}
+#: GT folder pairs (all pixels, non-occluded) per protocol, in order of preference: KITTI 2012
+#: metrics may also be computed on a KITTI 2015 tree.
+_KITTI_GT = {
+    "kitti2015": (("disp_occ_0", "disp_noc_0"),),
+    "kitti2012": (("disp_occ", "disp_noc"), ("disp_occ_0", "disp_noc_0")),
+}
 
 
 @dataclass(frozen=True)
@@ -82,10 +87,14 @@ def _kitti_root(root: Path, occ: str) -> Path | None:
 
 
 def _kitti_frames(root: Path, protocol: str) -> list[BenchmarkFrame]:
-    occ, noc = _KITTI_GT[protocol]
-    base = _kitti_root(root, occ)
-    if base is None:
-        return []
+    for occ, noc in _KITTI_GT[protocol]:
+        base = _kitti_root(root, occ)
+        if base is not None:
+            return _kitti_tree(base, occ, noc, protocol)
+    return []
+
+
+def _kitti_tree(base: Path, occ: str, noc: str, protocol: str) -> list[BenchmarkFrame]:
     frames = []
     for gt in sorted(p for p in (base / occ).iterdir() if p.suffix.lower() == ".png"):
         frames.append(
@@ -165,7 +174,7 @@ def discover(protocol: Protocol, root: Path) -> list[BenchmarkFrame]:
             "middeval3": "scene folders with disp0GT.pfm (MiddEval3 trainingQ/H/F)",
             "eth3d": "scene folders with disp0GT.pfm or disp0.pfm (ETH3D two-view)",
             "kitti2015": "disp_occ_0/ (in the folder, training/ or gt/)",
-            "kitti2012": "disp_occ/ (in the folder or training/)",
+            "kitti2012": "disp_occ/ or disp_occ_0/ (in the folder, training/ or gt/)",
         }[protocol.name]
         raise LayoutError(f"{root}: not a {protocol.title} tree; expected {expected}") from None
 
