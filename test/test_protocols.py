@@ -205,15 +205,15 @@ def test_kitti2015_testbed_sgbm_and_devkit_demo(shared_data: Path) -> None:
 
 def test_kitti2015_cli_dataset_tree(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
     base = shared_data / VELODYNE
-    document = run_json(
-        capsys,
+    argv = [
         "--protocol",
         "kitti2015",
         "--scene",
         str(base),
         "--est",
         f"psmnet={base / 'prediction'}",
-    )
+    ]
+    document = run_json(capsys, *argv)
     frames = kitti_frames(shared_data)
     pooled = np.zeros(12, F)
     for (name, gt, est, obj), row in zip(
@@ -234,20 +234,7 @@ def test_kitti2015_cli_dataset_tree(shared_data: Path, capsys: pytest.CaptureFix
     protocol = get_protocol("kitti2015")
     assert document["provenance"]["configuration"]["protocol_sha256"] == protocol.sha256()
     # the text report prints the same numbers with two decimals, the devkit's names
-    assert (
-        main(
-            [
-                "eval",
-                "--protocol",
-                "kitti2015",
-                "--scene",
-                str(base),
-                "--est",
-                f"psmnet={base / 'prediction'}",
-            ]
-        )
-        == 0
-    )
+    assert main(["eval", *argv]) == 0
     text = capsys.readouterr().out
     summary = document["methods"]["psmnet"]["summary"]["occ"]
     assert f"{summary['D1-all']:.2f} %" in text

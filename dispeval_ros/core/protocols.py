@@ -106,6 +106,24 @@ def config_sha256(record: Mapping[str, object]) -> str:
 
 _QUANTILES = (50, 90, 95, 99)
 _BAD = (0.5, 1.0, 2.0, 4.0)
+_BAD_COLUMNS = tuple(f"bad {t:.1f}" for t in _BAD)
+_QUANTILE_COLUMNS = tuple(f"A{q}" for q in _QUANTILES)
+
+
+_D1 = ("D1-bg", "D1-fg", "D1-all")
+_OUT = tuple(f"Out-{k}" for k in (2, 3, 4, 5))
+_KITTI_INTERPOLATION = "devkit interpolateBackground (rows without estimate stay -1)"
+
+
+def _kitti_columns(main: tuple[str, ...]) -> tuple[str, ...]:
+    """KITTI's columns: each over all GT pixels, then over estimated pixels (est), density."""
+    return (*main, *(f"{c} (est)" for c in main), "density")
+
+
+def _error_columns(average: str) -> tuple[str, ...]:
+    """The Middlebury-style error columns (MiddEval3 and ETH3D name the mean differently)."""
+    return (*_BAD_COLUMNS, average, "rms", *_QUANTILE_COLUMNS)
+
 
 PROTOCOLS: dict[str, Protocol] = {
     "middeval3": Protocol(
@@ -113,20 +131,9 @@ PROTOCOLS: dict[str, Protocol] = {
         title="Middlebury MiddEval3",
         tool="MiddEval3 SDK evaldisp (runeval)",
         regions=("nonocc", "all"),
-        columns=(
-            *(f"bad {t:.1f}" for t in _BAD),
-            "invalid",
-            "avgErr",
-            "rms",
-            *(f"A{q}" for q in _QUANTILES),
-        ),
-        percent=(*(f"bad {t:.1f}" for t in _BAD), "invalid"),
-        objectives=(
-            *(f"bad {t:.1f}" for t in _BAD),
-            "avgErr",
-            "rms",
-            *(f"A{q}" for q in _QUANTILES),
-        ),
+        columns=(*_BAD_COLUMNS, "invalid", *_error_columns("avgErr")[len(_BAD) :]),
+        percent=(*_BAD_COLUMNS, "invalid"),
+        objectives=_error_columns("avgErr"),
         summary="weighted average over scenes (MIDDEVAL3_WEIGHTS)",
         float32="err, the error sums (row-major) and the stored percentages are float32",
         settings={
@@ -144,32 +151,16 @@ PROTOCOLS: dict[str, Protocol] = {
         title="KITTI 2015 stereo",
         tool="KITTI 2015 devkit evaluate_scene_flow (disparityErrorsOutlier)",
         regions=("noc", "occ"),
-        columns=(
-            "D1-bg",
-            "D1-fg",
-            "D1-all",
-            "D1-bg (est)",
-            "D1-fg (est)",
-            "D1-all (est)",
-            "density",
-        ),
-        percent=(
-            "D1-bg",
-            "D1-fg",
-            "D1-all",
-            "D1-bg (est)",
-            "D1-fg (est)",
-            "D1-all (est)",
-            "density",
-        ),
-        objectives=("D1-bg", "D1-fg", "D1-all"),
+        columns=_kitti_columns(_D1),
+        percent=_kitti_columns(_D1),
+        objectives=_D1,
         summary="pooled counts over frames (float32 accumulators, as the devkit)",
         float32="e and e/|d| in float32 (compared with the double 0.05), ratios and pooled "
         "counters in float32",
         settings={
             "abs_thresh": 3.0,
             "rel_thresh": 0.05,
-            "interpolation": "devkit interpolateBackground (rows without estimate stay -1)",
+            "interpolation": _KITTI_INTERPOLATION,
             "foreground": "obj_map > 0",
         },
     ),
@@ -178,45 +169,21 @@ PROTOCOLS: dict[str, Protocol] = {
         title="KITTI 2012 stereo",
         tool="KITTI 2012 devkit evaluate_stereo (disparityErrorsOutlier/Average)",
         regions=("noc", "occ"),
-        columns=(
-            *(f"Out-{k}" for k in (2, 3, 4, 5)),
-            "Avg",
-            *(f"Out-{k} (est)" for k in (2, 3, 4, 5)),
-            "Avg (est)",
-            "density",
-        ),
-        percent=(
-            *(f"Out-{k}" for k in (2, 3, 4, 5)),
-            *(f"Out-{k} (est)" for k in (2, 3, 4, 5)),
-            "density",
-        ),
-        objectives=(*(f"Out-{k}" for k in (2, 3, 4, 5)), "Avg"),
+        columns=_kitti_columns((*_OUT, "Avg")),
+        percent=tuple(c for c in _kitti_columns((*_OUT, "Avg")) if not c.startswith("Avg")),
+        objectives=(*_OUT, "Avg"),
         summary="float32 mean of the per-frame values (statMean)",
         float32="e in float32, the error sum in float32 in column-major order, the means in float32",
-        settings={
-            "thresholds": [2, 3, 4, 5],
-            "interpolation": "devkit interpolateBackground (rows without estimate stay -1)",
-        },
+        settings={"thresholds": [2, 3, 4, 5], "interpolation": _KITTI_INTERPOLATION},
     ),
     "eth3d": Protocol(
         name="eth3d",
         title="ETH3D two-view",
         tool="ETH3D two-view-evaluation (ComputeMetrics)",
         regions=("nonocc", "all"),
-        columns=(
-            *(f"bad {t:.1f}" for t in _BAD),
-            "avgerr",
-            "rms",
-            *(f"A{q}" for q in _QUANTILES),
-            "coverage",
-        ),
-        percent=(*(f"bad {t:.1f}" for t in _BAD), "coverage"),
-        objectives=(
-            *(f"bad {t:.1f}" for t in _BAD),
-            "avgerr",
-            "rms",
-            *(f"A{q}" for q in _QUANTILES),
-        ),
+        columns=(*_error_columns("avgerr"), "coverage"),
+        percent=(*_BAD_COLUMNS, "coverage"),
+        objectives=_error_columns("avgerr"),
         summary="mean of the per-frame values",
         float32="e = d - gt in float32, squared errors in float32 summed in double, "
         "rms = sqrtf, quantile index floor(float32(N) * q_f)",
@@ -444,30 +411,52 @@ def kitti2015_frame(
     obj_map: np.ndarray | None,
 ) -> FrameResult:
     """D1 per region (``noc`` from ``disp_noc_0``, ``occ`` from ``disp_occ_0``), frame values."""
-    gt_occ = as_disparity(gt_occ, "the ground truth")
-    estimate = as_disparity(estimate, "the estimate")
-    _same_shape(gt_occ, estimate, "the estimate")
-    interpolated = kitti_interpolation(estimate)
-    has_estimate = _estimate_valid(estimate)
+    prepared = _KittiFrame.of(frame, gt_occ, gt_noc, estimate, "disp_noc_0")
+    result = prepared.result
     foreground = None
     if obj_map is not None:
-        _same_shape(gt_occ, np.asarray(obj_map), "the object map (obj_map)")
+        _same_shape(prepared.grounds[-1][1], np.asarray(obj_map), "the object map (obj_map)")
         foreground = np.asarray(obj_map) > 0
-    result = FrameResult(frame, {})
-    grounds = {"noc": gt_noc, "occ": gt_occ}
-    if gt_noc is None:
-        result.notes.append("noc: no disp_noc_0 ground truth")
-    if foreground is None:
+    else:
         result.notes.append("D1-bg/D1-fg: no obj_map (every pixel counted as background)")
-    for region, given in grounds.items():
-        if given is None:
-            continue
-        gt = as_disparity(given, f"the {region} ground truth")
-        _same_shape(gt_occ, gt, f"the {region} ground truth")
-        counts = _d1_counts(gt, interpolated, has_estimate, foreground)
+    for region, gt in prepared.grounds:
+        counts = _d1_counts(gt, prepared.interpolated, prepared.has_estimate, foreground)
         result.counts[region] = counts
         result.values[region] = kitti2015_values(counts, foreground is not None)
     return result
+
+
+@dataclass
+class _KittiFrame:
+    """What both KITTI devkits prepare: the GT maps present, the interpolated estimate."""
+
+    result: FrameResult
+    grounds: list[tuple[str, np.ndarray]]
+    interpolated: np.ndarray
+    has_estimate: np.ndarray
+
+    @classmethod
+    def of(
+        cls,
+        frame: str,
+        gt_occ: np.ndarray,
+        gt_noc: np.ndarray | None,
+        estimate: np.ndarray,
+        noc_name: str,
+    ) -> _KittiFrame:
+        occ = as_disparity(gt_occ, "the ground truth")
+        estimate = as_disparity(estimate, "the estimate")
+        _same_shape(occ, estimate, "the estimate")
+        result = FrameResult(frame, {})
+        grounds = []
+        if gt_noc is None:
+            result.notes.append(f"noc: no {noc_name} ground truth")
+        else:
+            noc = as_disparity(gt_noc, "the noc ground truth")
+            _same_shape(occ, noc, "the noc ground truth")
+            grounds.append(("noc", noc))
+        grounds.append(("occ", occ))
+        return cls(result, grounds, kitti_interpolation(estimate), _estimate_valid(estimate))
 
 
 def _d1_counts(
@@ -530,21 +519,12 @@ def kitti2012_frame(
     frame: str, gt_occ: np.ndarray, gt_noc: np.ndarray | None, estimate: np.ndarray
 ) -> FrameResult:
     """Out-2…5 and Avg per region, over all GT pixels and over estimated ones, density."""
-    gt_occ = as_disparity(gt_occ, "the ground truth")
-    estimate = as_disparity(estimate, "the estimate")
-    _same_shape(gt_occ, estimate, "the estimate")
-    interpolated = kitti_interpolation(estimate)
-    has_estimate = _estimate_valid(estimate)
-    result = FrameResult(frame, {})
-    if gt_noc is None:
-        result.notes.append("noc: no disp_noc ground truth")
-    for region, given in (("noc", gt_noc), ("occ", gt_occ)):
-        if given is None:
-            continue
-        gt = as_disparity(given, f"the {region} ground truth")
-        _same_shape(gt_occ, gt, f"the {region} ground truth")
-        result.values[region] = _kitti2012_region(gt, interpolated, has_estimate)
-    return result
+    prepared = _KittiFrame.of(frame, gt_occ, gt_noc, estimate, "disp_noc")
+    for region, gt in prepared.grounds:
+        prepared.result.values[region] = _kitti2012_region(
+            gt, prepared.interpolated, prepared.has_estimate
+        )
+    return prepared.result
 
 
 def _kitti2012_region(
