@@ -506,3 +506,48 @@ def test_found_estimates_follow_benchmark_layouts(shared_data: Path) -> None:
     found = find_estimate(frames[0], "psm", shared_data / VELODYNE / "prediction")
     assert found.name == "000010.png"
     assert read_estimate(found).dtype == np.float32
+
+
+def test_single_frame_files_on_the_command_line(
+    shared_data: Path, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """--gt FILE with the protocol's side files: the same numbers as the dataset-tree path."""
+    scene = shared_data / MIDDEVAL3 / "Teddy"
+    frame = load_frame(discover(get_protocol("middeval3"), scene)[0])
+    est = middeval3_estimate(frame.gt, 5, frame.ndisp or 0)
+    write_pfm(tmp_path / "mine.pfm", est)
+    document = run_json(
+        capsys,
+        *("--protocol", "middeval3", "--gt", str(scene / "disp0GT.pfm")),
+        *("--mask", f"nonocc={scene / 'mask0nocc.png'}", "--calib", str(scene / "calib.txt")),
+        *("--est", f"mine={tmp_path / 'mine.pfm'}"),
+    )
+    values = document["methods"]["mine"]["frames"][0]["regions"]
+    assert_same(values["nonocc"], sdk_evaldisp(frame.gt, est, frame.nonocc_mask, frame.ndisp))
+    base = shared_data / VELODYNE
+    _name, gt, predicted, obj = kitti_frames(shared_data)[1]
+    document = run_json(
+        capsys,
+        *("--protocol", "kitti2015", "--gt", str(base / "gt/disp_occ_0/000043.png")),
+        *("--obj-map", str(base / "gt/obj_map/000043.png")),
+        *("--est", f"psm={base / 'prediction/000043.png'}"),
+    )
+    row = document["methods"]["psm"]["frames"][0]["regions"]["occ"]
+    assert_same(row, d1_values(devkit_d1_counters(gt, predicted, obj)))
+
+
+def test_kitti2012_metrics_on_a_kitti2015_tree(
+    shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = shared_data / VELODYNE
+    argv = ["--protocol", "kitti2012", "--scene", str(base), "--est", f"psm={base / 'prediction'}"]
+    document = run_json(capsys, *argv)
+    assert document["frames"] == ["000010", "000043", "000112", "000150"]
+    _name, gt, predicted, _obj = kitti_frames(shared_data)[0]
+    want = devkit_2012(gt, predicted)
+    assert_same(document["methods"]["psm"]["frames"][0]["regions"]["occ"], want)
+    assert main(["eval", *argv, "--summary-only"]) == 0
+    text = capsys.readouterr().out
+    assert "summary, region occ" in text
+    assert "Out-3 (est)" in text
+    assert "method psm: per frame" not in text
