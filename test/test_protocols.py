@@ -24,6 +24,7 @@ from dispeval_ros.core.evaluator import Evaluator
 from dispeval_ros.core.protocols import (
     MIDDEVAL3_WEIGHTS,
     eth3d_frame,
+    evaluate_frame,
     get_protocol,
     kitti2012_frame,
     kitti2015_frame,
@@ -32,9 +33,9 @@ from dispeval_ros.core.protocols import (
     quantile_index,
     summarize_frames,
 )
-from dispeval_ros.io import read_disparity, read_mask, write_pfm
+from dispeval_ros.io import read_disparity, read_mask, write_disparity_png16, write_pfm
 from dispeval_ros.io.benchmarks import discover, find_estimate, load_frame, read_estimate
-from dispeval_ros.offline.benchmark import evaluate_benchmark
+from dispeval_ros.offline.benchmark import evaluate_benchmark, evaluate_frames, single_frame
 from dispeval_ros.testbed.methods import default_methods
 
 F = np.float32
@@ -551,3 +552,30 @@ def test_kitti2012_metrics_on_a_kitti2015_tree(
     assert "summary, region occ" in text
     assert "Out-3 (est)" in text
     assert "method psm: per frame" not in text
+
+
+def test_moved_digits_are_reported(tmp_path: Path) -> None:
+    """Where float32 changes a printed value the run lists it with the exact value beside it."""
+    gt = np.full((6, 8), 100.0, F)
+    estimate = np.full((6, 8), 95.0, F)  # e/d = 5 % exactly: an outlier only in float32
+    write_disparity_png16(tmp_path / "gt.png", gt)
+    write_disparity_png16(tmp_path / "est.png", estimate)
+    frame = single_frame(tmp_path / "gt.png")
+    run = evaluate_frames("kitti2015", [frame], {"m": tmp_path / "est.png"}, "x")
+    moved = {(m.frame, m.column): (m.official, m.exact) for m in run.moved}
+    assert moved[("gt", "D1-all")] == (100.0, 0.0)
+    assert moved[("summary", "D1-all")] == (100.0, 0.0)
+    assert run.to_dict()["float32_moved_digits"][0]["official"] == 100.0
+
+
+def test_float32_moves_middeval3_digits_on_real_scenes(shared_data: Path) -> None:
+    """On MiddEval3 Q the SDK's float32 error sum changes printed avgErr/rms digits (measured)."""
+    folder = shared_data / MIDDEVAL3 / "PianoL"
+    frame = load_frame(discover(get_protocol("middeval3"), folder)[0])
+    est = stereo_estimate(folder / "im0.png", folder / "im1.png", np.inf)
+    result = evaluate_frame("middeval3", frame, est)
+    assert result.exact is not None
+    official, exact = result.values["all"]["avgErr"], result.exact.values["all"]["avgErr"]
+    assert official != exact
+    assert official == sdk_evaldisp(frame.gt, est, None, frame.ndisp)["avgErr"]
+    assert exact == pytest.approx(official, rel=1e-3)

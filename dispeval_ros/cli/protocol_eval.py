@@ -38,6 +38,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+MOVED_SHOWN = 10
+
+
 def _estimates(specs: list[str]) -> dict[str, Path | None]:
     chosen: dict[str, Path | None] = {}
     for spec in specs:
@@ -134,9 +137,23 @@ def report_text(run_result: BenchmarkRun, per_frame: bool = True) -> str:
         f"{str(provenance.get('configuration_sha256'))[:16]}…, {len(files)} input files hashed "
         "(sha256 of each in --json)"
     ]
-    notes = run_result.notes()
-    if notes:
-        blocks.append("\n".join(f"note: {note}" for note in notes))
+    notes = [f"note: {note}" for note in run_result.notes()]
+    if run_result.moved:
+        notes.append(
+            f"float32: the official tool's arithmetic moves {len(run_result.moved)} printed "
+            "value(s); shown as the tool prints them (exact arithmetic in brackets):"
+        )
+        for moved in run_result.moved[:MOVED_SHOWN]:
+            notes.append(
+                f"  {moved.method} {moved.frame} {moved.region} {moved.column}: "
+                f"{_cell(protocol, moved.column, moved.official)} "
+                f"({_cell(protocol, moved.column, moved.exact)})"
+            )
+        if len(run_result.moved) > MOVED_SHOWN:
+            notes.append(f"  … {len(run_result.moved) - MOVED_SHOWN} more in --json")
+    else:
+        notes.append("float32: the official arithmetic moves no printed value here")
+    blocks.append("\n".join(notes))
     columns = list(protocol.columns)
     if per_frame:
         for method, frames in run_result.results.items():

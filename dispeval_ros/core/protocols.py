@@ -212,13 +212,15 @@ class FrameResult:
     """One method on one frame: ``values[region][column]`` in leaderboard units.
 
     ``counts`` holds what the summary combines (the raw counters of KITTI 2015), ``notes``
-    what could not be evaluated and why (a missing ``disp_noc``, no ``obj_map``...).
+    what could not be evaluated and why (a missing ``disp_noc``, no ``obj_map``...), ``exact``
+    the same frame in exact (float64) arithmetic, to tell where float32 moves a digit.
     """
 
     frame: str
     values: dict[str, dict[str, float]]
     counts: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    exact: FrameResult | None = None
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready form (nan for the JSON writer to turn into null)."""
@@ -289,6 +291,45 @@ def _ratio32(numerator: float, denominator: float) -> float:
     return float(F32(numerator) / max(F32(denominator), F32(1.0)))
 
 
+@dataclass(frozen=True)
+class Arithmetic:
+    """The official tools' float32 steps (:data:`OFFICIAL`) or exact float64 ones (:data:`EXACT`).
+
+    Every protocol runs in both, so the report can say where float32 moves a printed digit.
+    """
+
+    official: bool
+
+    @property
+    def real(self) -> type[np.floating]:
+        """The type of per-pixel errors and of the quantities the tool keeps in a float."""
+        return F32 if self.official else np.float64
+
+    def accumulate(self, values: np.ndarray) -> np.floating:
+        """A sum the tool accumulates in a float (sequential float32), else an exact sum."""
+        if self.official:
+            return float32_sum(values)
+        return np.float64(np.sum(values, dtype=np.float64))
+
+    def ratio(self, numerator: float, denominator: float) -> float:
+        """A count ratio as the KITTI devkits normalise it (float32), else in double."""
+        if self.official:
+            return _ratio32(numerator, denominator)
+        return float(numerator) / max(float(denominator), 1.0)
+
+    def index(self, size: int, percent: int) -> int:
+        """The quantile index ``floor(N·q)``: float32 product, else exact."""
+        return quantile_index(size, percent / 100.0) if self.official else size * percent // 100
+
+    def root(self, value: float) -> float:
+        """``sqrtf`` of a value stored in a float, else an exact square root."""
+        return float(np.sqrt(F32(value))) if self.official else math.sqrt(value)
+
+
+OFFICIAL = Arithmetic(official=True)
+EXACT = Arithmetic(official=False)
+
+
 # ---------------------------------------------------------------------------- MiddEval3
 
 
@@ -298,6 +339,7 @@ def middeval3_frame(
     estimate: np.ndarray,
     nonocc: np.ndarray | None,
     ndisp: float | None,
+    arithmetic: Arithmetic = OFFICIAL,
 ) -> FrameResult:
     """MiddEval3 ``evaldisp`` over ``nonocc`` (mask value 255) and ``all`` (known GT).
 
@@ -322,7 +364,8 @@ def middeval3_frame(
     maxd = F32(scale * (99999 if ndisp is None else ndisp))
     with np.errstate(invalid="ignore"):
         d = np.where(valid, np.clip(d, F32(0.0), maxd), d).astype(F32)
-        error = np.abs(d - gt).astype(F32)
+        real = arithmetic.real
+        error = np.abs(d.astype(real) - gt.astype(real)).astype(real)
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
         _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
@@ -332,38 +375,40 @@ def middeval3_frame(
     if nonocc is None:
         result.notes.append("nonocc: no mask0nocc.png")
     for region, where in regions.items():
-        result.values[region] = _middeval3_region(error, valid, where)
+        result.values[region] = _middeval3_region(error, valid, where, arithmetic)
     return result
 
 
-def _middeval3_region(error: np.ndarray, valid: np.ndarray, where: np.ndarray) -> dict[str, float]:
+def _middeval3_region(
+    error: np.ndarray, valid: np.ndarray, where: np.ndarray, arithmetic: Arithmetic
+) -> dict[str, float]:
     n = int(np.count_nonzero(where))
     scored = where & valid
     invalid = n - int(np.count_nonzero(scored))
     errors = error[scored]  # row-major: the SDK's loop order
     values: dict[str, float] = {}
+    real = arithmetic.real
     with np.errstate(invalid="ignore", divide="ignore"):
         for threshold in _BAD:
-            bad = int(np.count_nonzero(errors > F32(threshold)))
+            bad = int(np.count_nonzero(errors > real(threshold)))
             values[f"bad {threshold:.1f}"] = (
-                float(F32(100.0 * (bad + invalid) / n)) if n else math.nan
+                float(real(100.0 * (bad + invalid) / n)) if n else math.nan
             )
-        values["invalid"] = float(F32(100.0 * invalid / n)) if n else math.nan
+        values["invalid"] = float(real(100.0 * invalid / n)) if n else math.nan
         used = n - invalid
-        values["avgErr"] = float(float32_sum(errors) / F32(used)) if used else math.nan
-        squared = (errors * errors).astype(F32)
-        values["rms"] = float(np.sqrt(float32_sum(squared) / F32(used))) if used else math.nan
-    values.update(_quantiles(errors))
+        total = arithmetic.accumulate(errors)
+        values["avgErr"] = float(total / real(used)) if used else math.nan
+        squares = arithmetic.accumulate((errors * errors).astype(real))
+        values["rms"] = float(np.sqrt(squares / real(used))) if used else math.nan
+    values.update(_quantiles(errors, arithmetic))
     return values
 
 
-def _quantiles(errors: np.ndarray) -> dict[str, float]:
+def _quantiles(errors: np.ndarray, arithmetic: Arithmetic = OFFICIAL) -> dict[str, float]:
     """A50…A99: the sorted errors at ``floor(N·q)`` (float32 product), NaN without errors."""
     if errors.size == 0:
         return {f"A{q}": math.nan for q in _QUANTILES}
-    positions = {
-        q: min(quantile_index(errors.size, q / 100.0), errors.size - 1) for q in _QUANTILES
-    }
+    positions = {q: min(arithmetic.index(errors.size, q), errors.size - 1) for q in _QUANTILES}
     ordered = np.partition(errors, sorted(set(positions.values())))
     return {f"A{q}": float(ordered[p]) for q, p in positions.items()}
 
@@ -409,6 +454,7 @@ def kitti2015_frame(
     gt_noc: np.ndarray | None,
     estimate: np.ndarray,
     obj_map: np.ndarray | None,
+    arithmetic: Arithmetic = OFFICIAL,
 ) -> FrameResult:
     """D1 per region (``noc`` from ``disp_noc_0``, ``occ`` from ``disp_occ_0``), frame values."""
     prepared = _KittiFrame.of(frame, gt_occ, gt_noc, estimate, "disp_noc_0")
@@ -420,9 +466,11 @@ def kitti2015_frame(
     else:
         result.notes.append("D1-bg/D1-fg: no obj_map (every pixel counted as background)")
     for region, gt in prepared.grounds:
-        counts = _d1_counts(gt, prepared.interpolated, prepared.has_estimate, foreground)
+        counts = _d1_counts(
+            gt, prepared.interpolated, prepared.has_estimate, foreground, arithmetic
+        )
         result.counts[region] = counts
-        result.values[region] = kitti2015_values(counts, foreground is not None)
+        result.values[region] = kitti2015_values(counts, foreground is not None, arithmetic)
     return result
 
 
@@ -464,12 +512,14 @@ def _d1_counts(
     interpolated: np.ndarray,
     has_estimate: np.ndarray,
     foreground: np.ndarray | None,
+    arithmetic: Arithmetic,
 ) -> list[float]:
     """The devkit's 12 counters: (errors, pixels, errors est, pixels est) × (bg, fg, all)."""
     valid = gt > 0
-    error = np.abs(gt - interpolated).astype(F32)
+    real = arithmetic.real
+    error = np.abs(gt.astype(real) - interpolated.astype(real)).astype(real)
     with np.errstate(divide="ignore", invalid="ignore"):
-        relative = (error / np.abs(gt)).astype(F32)
+        relative = (error / np.abs(gt.astype(real))).astype(real)
         outlier = valid & (error > 3.0) & (relative.astype(np.float64) > 0.05)
     fg = np.zeros(gt.shape, bool) if foreground is None else foreground
     counts: list[float] = []
@@ -483,21 +533,24 @@ def _d1_counts(
     return counts
 
 
-def kitti2015_values(counts: Sequence[float], with_foreground: bool = True) -> dict[str, float]:
+def kitti2015_values(
+    counts: Sequence[float], with_foreground: bool = True, arithmetic: Arithmetic = OFFICIAL
+) -> dict[str, float]:
     """D1 columns (percent) from the 12 counters, with the devkit's float32 ratios."""
     values: dict[str, float] = {}
+    ratio = arithmetic.ratio
     for index, part in enumerate(_D1_COUNTERS):
         errors, pixels, errors_est, pixels_est = counts[4 * index : 4 * index + 4]
         unknown = part != "all" and not with_foreground
-        values[f"D1-{part}"] = math.nan if unknown else 100.0 * _ratio32(errors, pixels)
-        values[f"D1-{part} (est)"] = (
-            math.nan if unknown else 100.0 * _ratio32(errors_est, pixels_est)
-        )
-    values["density"] = 100.0 * _ratio32(counts[11], counts[9])
+        values[f"D1-{part}"] = math.nan if unknown else 100.0 * ratio(errors, pixels)
+        values[f"D1-{part} (est)"] = math.nan if unknown else 100.0 * ratio(errors_est, pixels_est)
+    values["density"] = 100.0 * ratio(counts[11], counts[9])
     return {column: values[column] for column in PROTOCOLS["kitti2015"].columns}
 
 
-def kitti2015_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
+def kitti2015_summary(
+    frames: Sequence[FrameResult], arithmetic: Arithmetic = OFFICIAL
+) -> dict[str, dict[str, float]]:
     """Pooled D1: the counters of every frame summed in float32 accumulators, in frame order."""
     summary: dict[str, dict[str, float]] = {}
     with_foreground = all("D1-bg/D1-fg" not in " ".join(f.notes) for f in frames)
@@ -505,10 +558,11 @@ def kitti2015_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, floa
         parts = [f.counts[region] for f in frames if region in f.counts]
         if not parts:
             continue
-        totals = np.zeros(12, dtype=F32)
+        real = arithmetic.real
+        totals = np.zeros(12, dtype=real)
         for counts in parts:
-            totals = (totals + np.asarray(counts, dtype=F32)).astype(F32)
-        summary[region] = kitti2015_values([float(v) for v in totals], with_foreground)
+            totals = (totals + np.asarray(counts, dtype=real)).astype(real)
+        summary[region] = kitti2015_values([float(v) for v in totals], with_foreground, arithmetic)
     return summary
 
 
@@ -516,42 +570,51 @@ def kitti2015_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, floa
 
 
 def kitti2012_frame(
-    frame: str, gt_occ: np.ndarray, gt_noc: np.ndarray | None, estimate: np.ndarray
+    frame: str,
+    gt_occ: np.ndarray,
+    gt_noc: np.ndarray | None,
+    estimate: np.ndarray,
+    arithmetic: Arithmetic = OFFICIAL,
 ) -> FrameResult:
     """Out-2…5 and Avg per region, over all GT pixels and over estimated ones, density."""
     prepared = _KittiFrame.of(frame, gt_occ, gt_noc, estimate, "disp_noc")
     for region, gt in prepared.grounds:
         prepared.result.values[region] = _kitti2012_region(
-            gt, prepared.interpolated, prepared.has_estimate
+            gt, prepared.interpolated, prepared.has_estimate, arithmetic
         )
     return prepared.result
 
 
 def _kitti2012_region(
-    gt: np.ndarray, interpolated: np.ndarray, has_estimate: np.ndarray
+    gt: np.ndarray, interpolated: np.ndarray, has_estimate: np.ndarray, arithmetic: Arithmetic
 ) -> dict[str, float]:
     valid = gt > 0
-    error = np.abs(gt - interpolated).astype(F32)
+    real = arithmetic.real
+    error = np.abs(gt.astype(real) - interpolated.astype(real)).astype(real)
     # the devkit loops u (columns) outside, v (rows) inside: transpose for that order
     by_column = error.T[valid.T]
     by_column_est = error.T[(valid & has_estimate).T]
     n, n_est = by_column.size, by_column_est.size
+    ratio = arithmetic.ratio
     values: dict[str, float] = {}
     for k in (2, 3, 4, 5):
-        values[f"Out-{k}"] = 100.0 * _ratio32(int(np.count_nonzero(by_column > F32(k))), n)
-    values["Avg"] = float(float32_sum(by_column) / max(F32(n), F32(1.0)))
+        values[f"Out-{k}"] = 100.0 * ratio(int(np.count_nonzero(by_column > real(k))), n)
+    values["Avg"] = float(arithmetic.accumulate(by_column) / max(real(n), real(1.0)))
     for k in (2, 3, 4, 5):
         # the devkit leaves the counts unnormalised when no pixel has an estimate
-        count = int(np.count_nonzero(by_column_est > F32(k)))
-        values[f"Out-{k} (est)"] = 100.0 * (_ratio32(count, n_est) if n_est else float(count))
-    values["Avg (est)"] = float(float32_sum(by_column_est) / max(F32(n_est), F32(1.0)))
-    values["density"] = 100.0 * _ratio32(n_est, n)
+        count = int(np.count_nonzero(by_column_est > real(k)))
+        values[f"Out-{k} (est)"] = 100.0 * (ratio(count, n_est) if n_est else float(count))
+    values["Avg (est)"] = float(arithmetic.accumulate(by_column_est) / max(real(n_est), real(1.0)))
+    values["density"] = 100.0 * ratio(n_est, n)
     return {column: values[column] for column in PROTOCOLS["kitti2012"].columns}
 
 
-def kitti2012_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
+def kitti2012_summary(
+    frames: Sequence[FrameResult], arithmetic: Arithmetic = OFFICIAL
+) -> dict[str, dict[str, float]]:
     """``statMean``: per column, the float32 sum of the per-frame values over float32(count)."""
     summary: dict[str, dict[str, float]] = {}
+    real = arithmetic.real
     for region in PROTOCOLS["kitti2012"].regions:
         rows = [f.values[region] for f in frames if region in f.values]
         if not rows:
@@ -560,8 +623,9 @@ def kitti2012_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, floa
         for column in PROTOCOLS["kitti2012"].columns:
             # the devkit averages fractions; the percent scale is applied after
             scale = 100.0 if column in PROTOCOLS["kitti2012"].percent else 1.0
-            terms = np.array([F32(row[column] / scale) for row in rows], dtype=F32)
-            summary[region][column] = scale * float(float32_sum(terms) / F32(len(rows)))
+            terms = np.array([real(row[column] / scale) for row in rows], dtype=real)
+            mean = arithmetic.accumulate(terms) / real(len(rows))
+            summary[region][column] = scale * float(mean)
     return summary
 
 
@@ -569,7 +633,11 @@ def kitti2012_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, floa
 
 
 def eth3d_frame(
-    frame: str, gt: np.ndarray, estimate: np.ndarray, nonocc: np.ndarray | None
+    frame: str,
+    gt: np.ndarray,
+    estimate: np.ndarray,
+    nonocc: np.ndarray | None,
+    arithmetic: Arithmetic = OFFICIAL,
 ) -> FrameResult:
     """ETH3D ``ComputeMetrics`` for ``nonocc`` (mask value 255) and ``all`` (finite GT)."""
     gt = as_disparity(gt, "the ground truth")
@@ -579,7 +647,8 @@ def eth3d_frame(
     known = np.isfinite(gt)
     with np.errstate(invalid="ignore"):
         estimated = np.isfinite(estimate) & (estimate <= width) & (estimate >= -width)
-        signed = (estimate - gt).astype(F32)
+        real = arithmetic.real
+        signed = (estimate.astype(real) - gt.astype(real)).astype(real)
     result = FrameResult(frame, {})
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
@@ -590,12 +659,12 @@ def eth3d_frame(
     regions["all"] = known
     for region, where in regions.items():
         result.values[region] = _eth3d_region(
-            signed[where & estimated], int(np.count_nonzero(where))
+            signed[where & estimated], int(np.count_nonzero(where)), arithmetic
         )
     return result
 
 
-def _eth3d_region(signed: np.ndarray, n_gt: int) -> dict[str, float]:
+def _eth3d_region(signed: np.ndarray, n_gt: int, arithmetic: Arithmetic) -> dict[str, float]:
     size = signed.size
     values: dict[str, float] = {}
     if size == 0:
@@ -604,17 +673,18 @@ def _eth3d_region(signed: np.ndarray, n_gt: int) -> dict[str, float]:
         values.update({f"A{q}": math.inf for q in _QUANTILES})
         values["coverage"] = 0.0 if n_gt else math.nan
         return values
-    absolute = np.abs(signed).astype(F32)
+    real = arithmetic.real
+    absolute = np.abs(signed).astype(real)
     for threshold in _BAD:
         values[f"bad {threshold:.1f}"] = (
-            100.0 * int(np.count_nonzero(absolute > F32(threshold))) / size
+            100.0 * int(np.count_nonzero(absolute > real(threshold))) / size
         )
     values["avgerr"] = float64_sum(absolute) / size
-    squared = (signed * signed).astype(F32)
-    values["rms"] = float(np.sqrt(F32(float64_sum(squared) / size)))
+    squared = (signed * signed).astype(real)
+    values["rms"] = arithmetic.root(float64_sum(squared) / size)
     ordered = np.sort(absolute)
     for q in _QUANTILES:
-        values[f"A{q}"] = float(ordered[quantile_index(size, q / 100.0)])
+        values[f"A{q}"] = float(ordered[arithmetic.index(size, q)])
     values["coverage"] = 100.0 * (1.0 if size == n_gt else size / n_gt)
     return values
 
@@ -639,20 +709,37 @@ class FrameData:
     ndisp: float | None = None
 
 
-def evaluate_frame(protocol: Protocol | str, data: FrameData, estimate: np.ndarray) -> FrameResult:
-    """One estimate on one frame under ``protocol``."""
+def evaluate_frame(
+    protocol: Protocol | str,
+    data: FrameData,
+    estimate: np.ndarray,
+    arithmetic: Arithmetic | None = None,
+) -> FrameResult:
+    """One estimate on one frame under ``protocol``.
+
+    By default the official arithmetic, with the exact twin in ``result.exact``; with an
+    ``arithmetic``, only that one.
+    """
     chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    if arithmetic is None:
+        result = evaluate_frame(chosen, data, estimate, OFFICIAL)
+        result.exact = evaluate_frame(chosen, data, estimate, EXACT)
+        return result
     if chosen.name == "middeval3":
-        return middeval3_frame(data.frame, data.gt, estimate, data.nonocc_mask, data.ndisp)
+        return middeval3_frame(
+            data.frame, data.gt, estimate, data.nonocc_mask, data.ndisp, arithmetic
+        )
     if chosen.name == "kitti2015":
-        return kitti2015_frame(data.frame, data.gt, data.gt_noc, estimate, data.obj_map)
+        return kitti2015_frame(data.frame, data.gt, data.gt_noc, estimate, data.obj_map, arithmetic)
     if chosen.name == "kitti2012":
-        return kitti2012_frame(data.frame, data.gt, data.gt_noc, estimate)
-    return eth3d_frame(data.frame, data.gt, estimate, data.nonocc_mask)
+        return kitti2012_frame(data.frame, data.gt, data.gt_noc, estimate, arithmetic)
+    return eth3d_frame(data.frame, data.gt, estimate, data.nonocc_mask, arithmetic)
 
 
 def summarize_frames(
-    protocol: Protocol | str, frames: Sequence[FrameResult]
+    protocol: Protocol | str,
+    frames: Sequence[FrameResult],
+    arithmetic: Arithmetic = OFFICIAL,
 ) -> dict[str, dict[str, float]]:
     """The benchmark's summary over ``frames`` (its own way of combining them)."""
     chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
@@ -661,10 +748,25 @@ def summarize_frames(
     if chosen.name == "middeval3":
         return middeval3_summary(frames)
     if chosen.name == "kitti2015":
-        return kitti2015_summary(frames)
+        return kitti2015_summary(frames, arithmetic)
     if chosen.name == "kitti2012":
-        return kitti2012_summary(frames)
+        return kitti2012_summary(frames, arithmetic)
     return eth3d_summary(frames)
+
+
+def moved_digits(
+    protocol: Protocol,
+    official: Mapping[str, Mapping[str, float]],
+    exact: Mapping[str, Mapping[str, float]],
+) -> list[tuple[str, str, float, float]]:
+    """``(region, column, official, exact)`` where the printed two decimals differ."""
+    moved = []
+    for region, values in official.items():
+        for column in protocol.columns:
+            have, want = values.get(column, math.nan), exact.get(region, {}).get(column, math.nan)
+            if f"{have:.2f}" != f"{want:.2f}":
+                moved.append((region, column, have, want))
+    return moved
 
 
 def objective_matrix(

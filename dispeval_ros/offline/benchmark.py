@@ -15,11 +15,13 @@ from pathlib import Path
 
 from dispeval_ros.core.models import ModelResult, evaluate_models
 from dispeval_ros.core.protocols import (
+    EXACT,
     FrameData,
     FrameResult,
     Protocol,
     evaluate_frame,
     get_protocol,
+    moved_digits,
     objective_matrix,
     summarize_frames,
 )
@@ -35,6 +37,18 @@ from dispeval_ros.io.benchmarks import (
 from dispeval_ros.io.provenance import file_sha256
 
 
+@dataclass(frozen=True)
+class MovedDigit:
+    """A printed value the official float32 arithmetic changes (``exact``: float64)."""
+
+    method: str
+    frame: str
+    region: str
+    column: str
+    official: float
+    exact: float
+
+
 @dataclass
 class BenchmarkRun:
     """Everything one protocol run produced (``to_dict`` is its JSON)."""
@@ -48,6 +62,7 @@ class BenchmarkRun:
     models: ModelResult | None = None
     provenance: dict[str, object] = field(default_factory=dict)
     files: dict[str, str] = field(default_factory=dict)
+    moved: list[MovedDigit] = field(default_factory=list)
 
     def notes(self) -> list[str]:
         """What could not be evaluated, once per distinct note."""
@@ -77,6 +92,7 @@ class BenchmarkRun:
                 for method, frames in self.results.items()
             },
             "notes": self.notes(),
+            "float32_moved_digits": [vars(m) for m in self.moved],
             "objectives": self.objectives,
             "models": self.models.to_dict() if self.models else None,
             "provenance": self.provenance,
@@ -129,12 +145,14 @@ def evaluate_frames(
         for method, where in estimates.items()
     }
     summary = {method: summarize_frames(chosen, scored) for method, scored in results.items()}
+    moved = _moved_digits(chosen, results, summary)
     run = BenchmarkRun(
         protocol=chosen,
         dataset=dataset,
         frames=[f.name for f in frames],
         results=results,
         summary=summary,
+        moved=moved,
     )
     if len(results) > 1:
         methods, names, matrix = objective_matrix(chosen, results)
@@ -150,6 +168,25 @@ def evaluate_frames(
     run.files = hashes
     run.provenance = provenance_record(configuration, {"files": hashes})
     return run
+
+
+def _moved_digits(
+    protocol: Protocol,
+    results: Mapping[str, list[FrameResult]],
+    summary: Mapping[str, dict[str, dict[str, float]]],
+) -> list[MovedDigit]:
+    """Every printed value (two decimals) that the tool's float32 arithmetic changes."""
+    moved: list[MovedDigit] = []
+    for method, frames in results.items():
+        exact_frames = [f.exact for f in frames if f.exact is not None]
+        pairs = [(f.frame, f.values, f.exact.values) for f in frames if f.exact is not None]
+        if len(exact_frames) == len(frames):
+            exact_summary = summarize_frames(protocol, exact_frames, EXACT)
+            pairs.append(("summary", summary[method], exact_summary))
+        for frame, official, exact in pairs:
+            for region, column, have, want in moved_digits(protocol, official, exact):
+                moved.append(MovedDigit(method, frame, region, column, have, want))
+    return moved
 
 
 def evaluate_benchmark(
