@@ -579,3 +579,21 @@ def test_float32_moves_middeval3_digits_on_real_scenes(shared_data: Path) -> Non
     assert official != exact
     assert official == sdk_evaldisp(frame.gt, est, None, frame.ndisp)["avgErr"]
     assert exact == pytest.approx(official, rel=1e-3)
+
+
+def test_results_must_be_in_the_tools_format(
+    shared_data: Path, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """KITTI reads 16-bit PNG, MiddEval3/ETH3D PFM: anything else is a one-line error."""
+    base = shared_data / VELODYNE
+    write_pfm(tmp_path / "000043.pfm", read_disparity(base / "prediction/000043.png"))
+    argv = ["eval", "--protocol", "kitti2015", "--gt", str(base / "gt/disp_occ_0/000043.png")]
+    assert main([*argv, "--est", f"m={tmp_path / '000043.pfm'}"]) == 2
+    assert "must be 1-channel 16-bit PNG" in capsys.readouterr().err
+    scene = shared_data / MIDDEVAL3 / "Teddy"
+    png = tmp_path / "teddy.png"
+    cv2.imwrite(str(png), np.zeros((4, 4), np.uint8))
+    assert (
+        main(["eval", "--protocol", "middeval3", "--scene", str(scene), "--est", f"m={png}"]) == 2
+    )
+    assert "must be PFM files" in capsys.readouterr().err

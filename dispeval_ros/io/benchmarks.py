@@ -229,6 +229,37 @@ def load_frame(frame: BenchmarkFrame) -> FrameData:
     )
 
 
-def read_estimate(path: Path) -> np.ndarray:
-    """A result file as float32 pixels (16-bit PNG: value / 256, 0 = no estimate)."""
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_format(path: Path) -> tuple[int, int] | None:
+    """(bit depth, colour type) from a PNG's IHDR, or None when the file is not a PNG."""
+    try:
+        with path.open("rb") as file:
+            head = file.read(26)
+    except OSError as error:
+        raise InputError(f"{path}: cannot read ({error.strerror or error})") from None
+    if len(head) < 26 or not head.startswith(_PNG_SIGNATURE):
+        return None
+    return head[24], head[25]
+
+
+def read_estimate(path: Path, protocol: Protocol | None = None) -> np.ndarray:
+    """A result file as float32 pixels, in the format the benchmark's tool reads.
+
+    KITTI results must be 1-channel 16-bit PNGs (value = disparity × 256, 0 = no estimate),
+    MiddEval3 and ETH3D results PFM files (``INF`` = no estimate): the official tools refuse
+    anything else, and another encoding would change what counts as missing.
+    """
+    if protocol is not None and protocol.name.startswith("kitti"):
+        if _png_format(path) != (16, 0):
+            raise InputError(
+                f"{path}: {protocol.title} results must be 1-channel 16-bit PNG "
+                "(disparity × 256, 0 = no estimate), as the devkit requires"
+            )
+    elif protocol is not None and path.suffix.lower() != ".pfm":
+        raise InputError(
+            f"{path}: {protocol.title} results must be PFM files (INF = no estimate), "
+            "as the official tool reads them"
+        )
     return read_disparity(path)

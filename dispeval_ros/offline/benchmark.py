@@ -114,7 +114,7 @@ def _score_method(
         if frame.gt not in loaded:
             loaded[frame.gt] = load_frame(frame)
         try:
-            scored.append(evaluate_frame(protocol, loaded[frame.gt], read_estimate(path)))
+            scored.append(evaluate_frame(protocol, loaded[frame.gt], read_estimate(path, protocol)))
         except DispevalError as error:
             message = str(error)
             raise type(error)(message if str(path) in message else f"{path}: {message}") from None
