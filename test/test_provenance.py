@@ -16,29 +16,19 @@ from dispeval_ros.core.protocols import PROTOCOLS, config_sha256, get_protocol
 from dispeval_ros.io import write_pfm
 from dispeval_ros.io.provenance import stream_digests
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.offline.make_bag import (
-    GT_TOPIC,
-    LEFT_INFO,
-    RIGHT_INFO,
-    disparity_topic,
-    synthetic_frames,
-    write_bag,
-)
+from dispeval_ros.offline import make_bag
+from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
 
 
 @pytest.fixture(scope="module")
 def drives(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The same 4-frame drive as rosbag2 (sqlite3 and MCAP) and as a plain MCAP file."""
     root = tmp_path_factory.mktemp("drives")
-    frames = list(synthetic_frames(4, 192, 64, 10.0, seed=3))
-    paths = {
-        "rosbag2-sqlite3": root / "sqlite",
-        "rosbag2-mcap": root / "mcap_folder",
-        "mcap": root / "drive.mcap",
-    }
-    for storage, path in paths.items():
-        write_bag(path, iter(frames), storage=storage)
-    return paths
+    frames = list(make_bag.synthetic_frames(4, 192, 64, 10.0, seed=3))
+    names = {"rosbag2-sqlite3": "sqlite", "rosbag2-mcap": "mcap_folder", "mcap": "drive.mcap"}
+    for storage, name in names.items():
+        make_bag.write_bag(root / name, iter(frames), storage=storage)
+    return {storage: root / name for storage, name in names.items()}
 
 
 def raw_digest(bag: Path, topic: str) -> tuple[str, int]:
@@ -69,25 +59,10 @@ def test_bag_database_and_summary_carry_provenance(
     drives: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "out"
-    argv = [
-        "bag",
-        str(drives["rosbag2-mcap"]),
-        "--gt",
-        GT_TOPIC,
-        "--method",
-        f"sgbm={disparity_topic('sgbm')}",
-        "--method",
-        f"bm={disparity_topic('bm_fast')}",
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
-        "--out",
-        str(out),
-        "--quiet",
-        "--protocol",
-        "kitti2012",
-        "--json",
-    ]
+    methods = [f"sgbm={disparity_topic('sgbm')}", f"bm={disparity_topic('bm_fast')}"]
+    argv = ["bag", str(drives["rosbag2-mcap"]), "--gt", GT_TOPIC, "--out", str(out), "--quiet"]
+    argv += [*(a for m in methods for a in ("--method", m)), "--camera-info", LEFT_INFO, RIGHT_INFO]
+    argv += ["--protocol", "kitti2012", "--json"]
     assert main(argv) == 0
     document = json.loads(capsys.readouterr().out)
     record = document["provenance"]
