@@ -344,7 +344,9 @@ def middeval3_frame(
     """MiddEval3 ``evaldisp`` over ``nonocc`` (mask value 255) and ``all`` (known GT).
 
     ``estimate`` may be 1/2 or 1/4 of the GT size (upsampled and scaled as the SDK does);
-    ``ndisp`` (calib.txt) bounds valid estimates, ``None`` = the SDK default 99999.
+    ``ndisp`` (the GT's calib.txt) bounds valid estimates, ``None`` = the SDK default 99999.
+    The SDK takes the bound at the result's resolution: MiddEval3 halves ``ndisp`` per level,
+    rounding up (F 290, H 145, Q 73), so a result at 1/s of the GT uses ``ceil(ndisp / s)``.
     """
     gt = as_disparity(gt, "the ground truth")
     estimate = as_disparity(estimate, "the estimate")
@@ -361,7 +363,8 @@ def middeval3_frame(
     d = np.repeat(np.repeat(estimate, scale, axis=0), scale, axis=1) * F32(scale)
     known = ~np.isposinf(gt)
     valid = ~np.isposinf(d)
-    maxd = F32(scale * (99999 if ndisp is None else ndisp))
+    maxdisp = 99999 if ndisp is None else math.ceil(ndisp / scale)
+    maxd = F32(scale * maxdisp)
     with np.errstate(invalid="ignore"):
         d = np.where(valid, np.clip(d, F32(0.0), maxd), d).astype(F32)
         real = arithmetic.real
