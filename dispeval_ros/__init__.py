@@ -10,36 +10,43 @@ ones, and Pareto-dominance models (A*, A* Groups, front reduction). The public A
 """
 
 from dispeval_ros.core import (
+    PROTOCOLS,
     Camera,
     Evaluator,
     ModelResult,
     Partition,
+    Protocol,
     Reference,
     Scores,
     astar_groups,
+    evaluate_frame,
     evaluate_models,
     front_reduction,
     measure_consistency,
     middlebury_ranks,
     pareto_front,
+    summarize_frames,
 )
 from dispeval_ros.errors import DispevalError
-
-__version__ = "0.1.0"
+from dispeval_ros.version import __version__
 
 __all__ = [
+    "PROTOCOLS",
     "Camera",
     "DispevalError",
     "Evaluator",
     "ModelResult",
     "Partition",
+    "Protocol",
     "Reference",
     "Scores",
     "__version__",
     "astar_groups",
+    "evaluate_frame",
     "evaluate_models",
     "front_reduction",
     "measure_consistency",
     "middlebury_ranks",
     "pareto_front",
+    "summarize_frames",
 ]

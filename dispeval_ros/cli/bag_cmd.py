@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dispeval_ros.cli import streams
+from dispeval_ros.cli import protocol_eval, streams
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
@@ -43,6 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     run.add_argument("--quiet", action="store_true", help="no progress line")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
+    protocol_eval.add_stream_option(parser)
     parser.set_defaults(run=run_command)
 
 
@@ -50,8 +51,10 @@ def run_command(args: argparse.Namespace) -> int:
     """Evaluate, export, summarise."""
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import evaluate_bags
+    from dispeval_ros.offline.records import record_bag_provenance
     from dispeval_ros.offline.summary import summarize
 
+    preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")
     slice_ns = round(args.slice * 1e9)
     if slice_ns <= 0:
@@ -60,6 +63,7 @@ def run_command(args: argparse.Namespace) -> int:
         **config.as_record(),
         "slice_ns": slice_ns,
         "bags": [str(path) for path in args.bags],
+        **preset,
     }
     progress = Progress("dispeval bag", enabled=not args.quiet)
     with ResultsStore.create(args.out, record, resume=args.resume) as store:
@@ -74,7 +78,8 @@ def run_command(args: argparse.Namespace) -> int:
         rows = store.export_csv(args.out / "frames.csv")
         summary = summarize(store, args.objective_measures, args.objectives)
         problems = store.problems()
-    document = summary.to_dict()
+        provenance = record_bag_provenance(store, args.bags, record, config)
+    document = {**summary.to_dict(), "provenance": provenance}
     write_json(args.out / "summary.json", document)
     if args.json:
         print_json(document)
@@ -86,5 +91,7 @@ def run_command(args: argparse.Namespace) -> int:
     print(
         f"this run: {report.units_done} units, {report.frames} method-frames, {report.messages} messages read"
     )
+    if preset:
+        print(protocol_eval.preset_note(args.protocol))
     print(run_summary_text(summary, problems))
     return 0

@@ -57,6 +57,7 @@ def replay_sample(args: argparse.Namespace) -> int:
     from dispeval_ros.live.core import CoreConfig
     from dispeval_ros.offline.bag_eval import evaluate_bags
     from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
+    from dispeval_ros.offline.records import record_bag_provenance
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
     from dispeval_ros.offline.summary import summarize
 
@@ -93,6 +94,7 @@ def replay_sample(args: argparse.Namespace) -> int:
         rows = store.export_csv(out / "frames.csv")
         summary = summarize(store)
         problems = store.problems()
+        provenance = record_bag_provenance(store, [bag], record, config)
         # -- the interactive report of these results (as `dispeval report OUT --bag BAG`)
         from dispeval_ros.report.data import build_report_data, error_thumbnails
         from dispeval_ros.report.html import write_report
@@ -103,7 +105,7 @@ def replay_sample(args: argparse.Namespace) -> int:
         # -- end of the report
     if args.json:
         document = {"results": str(out), "bag": str(bag), "report": str(report)}
-        print_json({**document, **summary.to_dict()})
+        print_json({**document, **summary.to_dict(), "provenance": provenance})
         return 0
     print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
     print(run_summary_text(summary, problems))

@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dispeval_ros.cli import common
+from dispeval_ros.cli import common, protocol_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
-from dispeval_ros.core import Camera, Scores, evaluate_models
+from dispeval_ros.core import Camera, Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError, DispevalError
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.scenes import Scene
 
 HELP = "score estimated disparity maps against ground truth, by criterion"
 
@@ -61,6 +65,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     common.add_evaluation_options(parser)
     common.add_camera_options(parser)
+    protocol_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run)
 
@@ -86,15 +91,51 @@ def _roi_names(text: str | None) -> dict[int, str] | None:
     return names
 
 
+def _scene_files(scene: Scene) -> list[Path]:
+    """The files of a scene folder the evaluation reads (its images are not scored)."""
+    images = {scene.left, scene.right}
+    return sorted(p for p in scene.source.iterdir() if p.is_file() and p not in images)
+
+
+def _provenance(
+    args: argparse.Namespace, evaluator: Evaluator, camera: Camera | None, inputs: list[Path]
+) -> dict[str, object]:
+    """Version, the options that define the numbers (and their hash), sha256 of every input."""
+    from dispeval_ros.core.provenance import provenance_record
+    from dispeval_ros.io.provenance import files_sha256
+
+    configuration = {
+        "command": "eval",
+        "criteria": list(evaluator.criteria),
+        "measures": list(evaluator.measures),
+        "missing": evaluator.missing,
+        "delta": evaluator.delta,
+        "mu": evaluator.mu,
+        "depth_ranges": args.depth_ranges,
+        "roi_labels": args.roi_labels,
+        "gt_scale": args.gt_scale,
+        "est_scale": args.est_scale,
+        "estimates": list(args.est),
+        "camera": None
+        if camera is None
+        else {"f": camera.f, "baseline": camera.baseline, "doffs": camera.doffs},
+    }
+    return provenance_record(configuration, {"files": files_sha256(inputs)})
+
+
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, score every estimate, print tables (and models) or JSON."""
     from dispeval_ros.io import load_scene, read_disparity, read_mask
 
+    if args.protocol is not None:
+        return protocol_eval.run(args)
     camera: Camera | None = None
     masks: dict[str, np.ndarray] = {}
     gt_right = None
+    inputs: list[Path] = []
     if args.scene is not None:
         scene = load_scene(args.scene)
+        inputs += _scene_files(scene)
         gt, camera, masks, gt_right = scene.gt, scene.camera, dict(scene.masks), scene.gt_right
         gt_name = str(args.scene)
         if args.gt is not None:
@@ -102,15 +143,18 @@ def run(args: argparse.Namespace) -> int:
     elif args.gt is not None:
         gt = read_disparity(args.gt, scale=args.gt_scale)
         gt_name = str(args.gt)
+        inputs.append(args.gt)
     else:
         raise ConfigurationError("give the ground truth with --gt FILE or --scene DIR")
     camera = common.camera_from_args(args) or camera
     for spec in args.mask:
         name, path = _named(spec)
         masks[name] = read_mask(path) == 255
+        inputs.append(path)
     if args.gt_right is not None:
         gt_right = read_disparity(args.gt_right, scale=args.gt_scale)
     roi = read_mask(args.roi) if args.roi is not None else None
+    inputs += [p for p in (args.gt_right, args.roi, args.calib) if p is not None]
 
     evaluator = common.evaluator_from_args(args, _roi_names(args.roi_labels))
     try:
@@ -126,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
             )
         try:
             results[name] = evaluator.score(reference, read_disparity(path, scale=args.est_scale))
+            inputs.append(path)
         except DispevalError as error:
             message = str(error)
             raise type(error)(message if str(path) in message else f"{path}: {message}") from None
@@ -161,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
         elif no_model:
             document["models"] = None
             document["models_note"] = no_model
+        document["provenance"] = _provenance(args, evaluator, camera, inputs)
         print_json(document)
         return 0
     print(

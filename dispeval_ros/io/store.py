@@ -353,6 +353,32 @@ class ResultsStore:
                 "UPDATE sequences SET source = ?, info = ? WHERE name = ?", (source, text, sequence)
             )
 
+    def set_provenance(self, record: Mapping[str, object]) -> None:
+        """Record (or replace) how the results were made: version, configuration, input hashes.
+
+        Kept in its own table (created on first use), one JSON value per key, so databases
+        written before it existed stay readable.
+        """
+        self._require_writable()
+        rows = _config_rows(record)
+        with self._transaction():
+            self._db.execute(_PROVENANCE_TABLE)
+            self._db.executemany(
+                "INSERT INTO provenance (key, value) VALUES (?, ?) "
+                "ON CONFLICT(key) DO UPDATE SET value = excluded.value",
+                rows,
+            )
+
+    def provenance(self) -> dict[str, object]:
+        """The record of :meth:`set_provenance` (empty for results written without one)."""
+        exists = self._db.execute(
+            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'provenance'"
+        ).fetchone()
+        if not exists:
+            return {}
+        rows = self._db.execute("SELECT key, value FROM provenance ORDER BY rowid")
+        return {key: json.loads(value) for key, value in rows}
+
     # -- reading -----------------------------------------------------------------------------
 
     def sequences(self) -> list[str]:
@@ -683,6 +709,11 @@ class ResultsStore:
 
 
 # -- helpers -----------------------------------------------------------------------------------
+
+
+_PROVENANCE_TABLE = (
+    "CREATE TABLE IF NOT EXISTS provenance (key TEXT PRIMARY KEY, value TEXT NOT NULL)"
+)
 
 
 def _quote(name: str) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
@@ -122,6 +123,11 @@ class SummarizerCore:
     def __init__(self, config: SummarizerConfig, run_config: Mapping[str, object]) -> None:
         self.config = config
         self.store = ResultsStore.create(config.out, run_config, resume=config.resume)
+        # live streams are not kept, so they cannot be hashed: the record says so
+        self.provenance = provenance_record(
+            run_config, {"streams": "live (messages are not kept, so not hashed)"}
+        )
+        self.store.set_provenance(self.provenance)
         existing = self.store.sequences()
         self._sequence_index = len(existing)
         self.sequence = self._name(self._sequence_index)
@@ -200,7 +206,8 @@ class SummarizerCore:
                     self.store, self.config.objective_measures, self.config.granularity
                 )
                 self.summary = summary
-                write_json(self.config.out / "summary.json", summary.to_dict())
+                document = {**summary.to_dict(), "provenance": self.provenance}
+                write_json(self.config.out / "summary.json", document)
         finally:
             self.store.close()
         return self.summary

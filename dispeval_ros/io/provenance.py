@@ -1,0 +1,92 @@
+"""sha256 of the inputs a result was made from: files, and bag message streams per topic.
+
+A stream's digest is the sha256 of its messages as read from the bag, in log-time order:
+for each message, its log time (8 bytes, little-endian), the length of its serialized bytes
+(8 bytes, little-endian) and those bytes (CDR for ROS 2 bags and MCAP, ROS 1 serialization
+for ROS 1 bags). The same recording gives the same digest in any storage of the same
+serialization, and a changed, dropped or reordered message changes it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import struct
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+
+from dispeval_ros.errors import InputError
+from dispeval_ros.io.bags import BagSource
+
+_CHUNK = 1 << 20
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 of a file's bytes (hex), or a one-line error naming the file."""
+    digest = hashlib.sha256()
+    try:
+        with Path(path).open("rb") as file:
+            for block in iter(lambda: file.read(_CHUNK), b""):
+                digest.update(block)
+    except OSError as error:
+        raise InputError(
+            f"{path}: cannot read for its sha256 ({error.strerror or error})"
+        ) from None
+    return digest.hexdigest()
+
+
+def files_sha256(paths: Iterable[Path]) -> dict[str, str]:
+    """Path → sha256 of each distinct file."""
+    return {str(path): file_sha256(path) for path in dict.fromkeys(paths)}
+
+
+def _raw_rosbags(paths: list[Path], topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader(paths) as reader:
+        connections = [c for c in reader.connections if c.topic in topics]
+        for connection, log_ns, raw in reader.messages(connections):
+            yield connection.topic, int(log_ns), bytes(raw)
+
+
+def _raw_mcap(path: Path, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as stream:
+        reader = make_reader(stream)
+        for _schema, channel, message in reader.iter_messages(
+            topics=list(topics), log_time_order=True
+        ):
+            yield channel.topic, int(message.log_time), bytes(message.data)
+
+
+def _raw_messages(path: Path, fmt: str, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
+    if fmt == "mcap":
+        return _raw_mcap(path, topics)
+    if fmt == "rosbag2-mcap":
+        folder = path if path.is_dir() else path.parent
+        files = sorted(folder.glob("*.mcap"))
+        if len(files) == 1:
+            return _raw_mcap(files[0], topics)
+    if path.is_dir() and fmt == "ros1":
+        return _raw_rosbags(sorted(path.glob("*.bag")), topics)
+    return _raw_rosbags([path], topics)
+
+
+def stream_digests(bag: Path, topics: Sequence[str]) -> dict[str, dict[str, object]]:
+    """Per topic of ``bag``: ``{"sha256": hex, "messages": count}`` of its serialized messages."""
+    with BagSource(bag) as source:
+        fmt = source.format
+        wanted = [t for t in dict.fromkeys(topics) if t in source.topics]
+    digests = {topic: hashlib.sha256() for topic in wanted}
+    counts = dict.fromkeys(wanted, 0)
+    try:
+        for topic, log_ns, raw in _raw_messages(Path(bag), fmt, wanted):
+            digest = digests[topic]
+            digest.update(struct.pack("<qQ", log_ns, len(raw)))
+            digest.update(raw)
+            counts[topic] += 1
+    except InputError:
+        raise
+    except Exception as error:
+        raise InputError(f"{bag}: cannot read the messages for their sha256 ({error})") from None
+    return {t: {"sha256": digests[t].hexdigest(), "messages": counts[t]} for t in wanted}
