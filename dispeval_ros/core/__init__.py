@@ -20,6 +20,8 @@ from dispeval_ros.core.models import (
     middlebury_ranks,
     pareto_front,
 )
+from dispeval_ros.core.projection import CloudFilter, CloudProjection, project_cloud
+from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
     "CRITERION_SETS",
@@ -28,6 +30,8 @@ __all__ = [
     "HIGHER_IS_BETTER",
     "POLICIES",
     "Camera",
+    "CloudFilter",
+    "CloudProjection",
     "CriterionSet",
     "Evaluator",
     "ModelResult",
@@ -35,6 +39,8 @@ __all__ = [
     "Reduction",
     "Reference",
     "Scores",
+    "StaticTransform",
+    "TransformTree",
     "astar_groups",
     "build_partition",
     "dominates",
@@ -45,4 +51,5 @@ __all__ = [
     "middlebury_ranks",
     "pareto_front",
     "parse_measures",
+    "project_cloud",
 ]
