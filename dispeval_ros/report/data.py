@@ -74,6 +74,14 @@ _RATIOS = {
     "bmpre_mean": (k.FIELD_BMPRE, k.FIELD_EVAL, 1.0),
     "d1": (k.FIELD_D1, k.FIELD_EVAL, 100.0),
     "density": (k.FIELD_VALID, k.FIELD_N, 1.0),
+    "mae_z": (k.FIELD_SUM_EZ, k.FIELD_EVAL, 1.0),
+    "absrel_z": (k.FIELD_SUM_RELZ, k.FIELD_EVAL, 1.0),
+}
+# name: (numerator field, scale inside the root) of the root-mean measures
+_ROOTS = {
+    "rmse": (k.FIELD_SUM_E2, 1.0),
+    "rmse_z": (k.FIELD_SUM_EZ2, 1.0),
+    "irmse": (k.FIELD_SUM_IZ2, 1e6),
 }
 _TOTALS = {"bmp_count": k.FIELD_BAD, "sze": k.FIELD_SZE, "bmpre": k.FIELD_BMPRE}
 
@@ -90,8 +98,9 @@ def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
     if name in _RATIOS:
         num, den, scale = _RATIOS[name]
         recipe.update(kind="ratio", num=num, den=den, scale=scale)
-    elif name == "rmse":
-        recipe.update(kind="sqrt_ratio", num=k.FIELD_SUM_E2, den=k.FIELD_EVAL, scale=1.0)
+    elif name in _ROOTS:
+        num, scale = _ROOTS[name]
+        recipe.update(kind="sqrt_ratio", num=num, den=k.FIELD_EVAL, scale=scale)
     elif name in _TOTALS:
         recipe.update(kind="total", num=_TOTALS[name], den=-1, scale=1.0)
     elif bad_threshold(name) is not None:
