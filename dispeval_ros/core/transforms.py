@@ -135,16 +135,19 @@ class TransformTree:
     """The static transforms seen so far; :meth:`lookup` composes chains of them.
 
     A later edge for the same child replaces the earlier one (as tf2 does for static
-    transforms).
+    transforms). :meth:`add` replaces the edge table instead of changing it, so lookups in
+    other threads always see a consistent table.
     """
 
     edges: dict[str, StaticTransform] = field(default_factory=dict)
 
     def add(self, transforms: Iterable[StaticTransform]) -> None:
         """Add or replace edges (keyed by child frame)."""
+        edges = dict(self.edges)
         for transform in transforms:
             child = _frame(transform.child)
-            self.edges[child] = StaticTransform(_frame(transform.parent), child, transform.matrix)
+            edges[child] = StaticTransform(_frame(transform.parent), child, transform.matrix)
+        self.edges = edges
 
     @property
     def frames(self) -> list[str]:
@@ -163,7 +166,8 @@ class TransformTree:
         if target == source:
             return np.eye(4)
         neighbours: dict[str, list[tuple[str, np.ndarray]]] = {}
-        for edge in self.edges.values():
+        edges = self.edges
+        for edge in edges.values():
             # Walking child → parent applies the edge, parent → child its inverse.
             neighbours.setdefault(edge.child, []).append((edge.parent, edge.matrix))
             neighbours.setdefault(edge.parent, []).append((edge.child, invert_rigid(edge.matrix)))

@@ -70,6 +70,20 @@ class LidarCalibration:
             )
         return Camera(f, baseline, float(self.right[0, 2] - self.left[0, 2]))
 
+    def ros_view(self) -> tuple[np.ndarray, float, float]:
+        """The calibration as ROS publishes a rectified pair: extrinsic, ``cx``, ``cy``.
+
+        ROS's left CameraInfo has ``R = I`` and ``P = K·[I | 0]``; KITTI's ``P2 = K·[I | t]``
+        and ``R0_rect`` are folded into the returned LiDAR → left-camera extrinsic, so that
+        ``K·[I | 0]·extrinsic`` equals :attr:`matrix`.
+        """
+        k = self.left[:, :3]
+        shift = np.eye(4)
+        shift[:3, 3] = np.linalg.solve(k, self.left[:, 3])
+        rect = np.eye(4)
+        rect[:3, :3] = self.rectification
+        return shift @ rect @ self.extrinsic, float(k[0, 2]), float(k[1, 2])
+
 
 def _text(file: Path) -> str:
     try:

@@ -67,6 +67,10 @@ class Scene:
     left: Path | None
     right: Path | None
     source: Path
+    lidar: Path | None = None
+    """LiDAR scenes: the raw scan the GT was projected from."""
+    lidar_calib: Path | None = None
+    """LiDAR scenes: the calibration (a file or a raw-calibration folder)."""
 
 
 # ----------------------------------------------------------------------------------- helpers
@@ -370,6 +374,8 @@ def _lidar_frame(
         left=left,
         right=right,
         source=folder,
+        lidar=scan,
+        lidar_calib=calib,
     )
 
 

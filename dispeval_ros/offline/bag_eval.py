@@ -114,6 +114,9 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     read_to = None if unit.stop_ns > 2**61 else unit.stop_ns + unit.margin_ns
     try:
         with BagSource(unit.path) as source:
+            if config.tf_topic:  # static transforms are latched: sent once, read them all
+                for topic, _, msg in source.messages([config.tf_topic]):
+                    core.push(topic, msg)
             for topic, _, msg in source.messages(list(config.topics), read_from, read_to):
                 result.messages += 1
                 handle(core.push(topic, msg))
