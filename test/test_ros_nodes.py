@@ -559,3 +559,117 @@ def test_problem_statuses_are_not_stored(ros: Ros, tmp_path: Path) -> None:
     ros.destroy(node)
     with ResultsStore.open(out) as store:
         assert store.methods() == ["good"]
+
+
+# -- robot mode: LiDAR ground truth -----------------------------------------------------------------
+
+# The LiDAR (x forward, y left, z up) 0.3 m above the left camera, looking the same way.
+LIDAR_TO_OPTICAL = np.array(
+    [[0, -1, 0, 0.0], [0, 0, -1, -0.3], [1, 0, 0, 0.0], [0, 0, 0, 1]], dtype=np.float64
+)
+
+
+def lidar_scene(k: int) -> np.ndarray:
+    """A wall 12 m ahead with a box 6 m ahead in front of it (LiDAR frame, N×3)."""
+    y, z = np.meshgrid(np.linspace(-6, 6, 140), np.linspace(-2.5, 1.5, 40))
+    depth = np.where((np.abs(y + 0.1 * k) < 1.0) & (z < 0), 6.0, 12.0)
+    return np.column_stack([depth.ravel(), y.ravel(), z.ravel()]).astype(np.float32)
+
+
+def cloud_msg(points: np.ndarray, stamp: int) -> Any:
+    """An unorganised PointCloud2 with x, y, z and an intensity field (16-byte points)."""
+    record = np.zeros(len(points), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("i", "<f4")])
+    for column, name in enumerate("xyz"):
+        record[name] = points[:, column]
+    fields = [
+        sensor_msgs.PointField(name=name, offset=4 * index, datatype=7, count=1)
+        for index, name in enumerate(("x", "y", "z", "intensity"))
+    ]
+    return sensor_msgs.PointCloud2(
+        header=convert.header_msg(stamp, "velodyne"),
+        height=1,
+        width=len(points),
+        fields=fields,
+        is_bigendian=False,
+        point_step=16,
+        row_step=16 * len(points),
+        data=record.tobytes(),
+        is_dense=True,
+    )
+
+
+def test_point_cloud_ground_truth_equals_the_core(ros: Ros) -> None:
+    topics = Topics("cloud")
+    node = ros.evaluator(
+        methods=[f"good:{topics.good}"],
+        gt_topic=topics.gt,
+        gt_kind="pointcloud",
+        lidar_extrinsic=" ".join(map(str, LIDAR_TO_OPTICAL.reshape(-1).tolist())),
+        cloud_filter="5,0.1",
+        left_camera_info=topics.left,
+        right_camera_info=topics.right,
+    )
+    assert node.config.extrinsic == tuple(LIDAR_TO_OPTICAL.reshape(-1))
+    types = {
+        topics.gt: sensor_msgs.PointCloud2,
+        topics.left: sensor_msgs.CameraInfo,
+        topics.right: sensor_msgs.CameraInfo,
+        topics.good: stereo_msgs.DisparityImage,
+    }
+    pubs = {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, list(pubs)))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    core = EvaluationCore(node.config)
+    for topic, right in ((topics.left, False), (topics.right, True)):
+        msg = camera_info_msg(START_NS, right)
+        pubs[topic].publish(msg)
+        core.push(topic, msg)
+    assert ros.spin_until(lambda: node._live.core.camera() is not None)
+
+    expected: list[FrameResult] = []
+    for k in range(3):
+        stamp = START_NS + k * FRAME_NS
+        cloud = cloud_msg(lidar_scene(k), stamp)
+        projected = core.cloud_disparity(cloud, core.camera(), (H, W)).disparity
+        assert (projected > 0).sum() > 200
+        disparity = disparity_msg(estimate(projected, 0.3, k), stamp)
+        for topic, msg in ((topics.gt, cloud), (topics.good, disparity)):
+            pubs[topic].publish(msg)
+            expected.extend(core.score(frame_set) for frame_set in core.push(topic, msg))
+        assert ros.spin_until(lambda k=k: len(scores) == k + 1), f"no scores for frame {k}"
+    assert len(expected) == 3
+    for array, result in zip(scores, expected, strict=True):
+        status = statuses(array)["good"]
+        assert convert.status_level(status) == OK, status.message
+        rebuilt = scores_from_status(convert.status_values(status))
+        np.testing.assert_array_equal(rebuilt.sums, result.scores["good"].sums)
+        assert "0-10m" in rebuilt.criteria
+        assert "irmse" in result.scores["good"].measures
+
+
+def test_point_cloud_without_extrinsic_needs_tf2_or_the_parameter(ros: Ros) -> None:
+    from dispeval_ros.errors import ConfigurationError
+
+    if importlib.util.find_spec("tf2_ros") or importlib.util.find_spec("tf2_msgs"):
+        pytest.skip("tf2 is installed: /tf_static is read")
+    topics = Topics("notf")
+    with pytest.raises(ConfigurationError, match="set the parameter lidar_extrinsic"):
+        ros.evaluator(
+            methods=[f"good:{topics.good}"],
+            gt_topic=topics.gt,
+            gt_kind="pointcloud",
+            left_camera_info=topics.left,
+            right_camera_info=topics.right,
+        )
+    with pytest.raises(ConfigurationError, match="lidar_extrinsic"):
+        ros.evaluator(
+            methods=[f"good:{topics.good}"],
+            gt_topic=topics.gt,
+            gt_kind="pointcloud",
+            lidar_extrinsic="1 2 3",
+            left_camera_info=topics.left,
+            right_camera_info=topics.right,
+        )

@@ -37,7 +37,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import Float64MultiArray, String
 from stereo_msgs.msg import DisparityImage
 
@@ -48,6 +48,7 @@ from dispeval_ros.live.core import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
     IMAGE_TYPE,
+    POINT_CLOUD_TYPE,
     FrameResult,
     MethodCounts,
 )
@@ -55,7 +56,7 @@ from dispeval_ros.live.images import colour_error
 from dispeval_ros.live.replay import replay
 from dispeval_ros.live.runner import LiveEvaluator
 from dispeval_ros.live.vectors import AlarmThresholds, score_vector, scores_status, vector_labels
-from dispeval_ros.ros import convert
+from dispeval_ros.ros import convert, static_tf
 from dispeval_ros.ros.params import (
     EVALUATOR_PARAMETERS,
     declare_parameters,
@@ -82,7 +83,12 @@ LOG_PERIOD = 5.0
 ACK_TIMEOUT = 2.0
 """Seconds to wait at shutdown for subscribers to acknowledge the last scores."""
 
-_MESSAGE_CLASSES = {IMAGE_TYPE: Image, DISPARITY_TYPE: DisparityImage, CAMERA_INFO_TYPE: CameraInfo}
+_MESSAGE_CLASSES = {
+    IMAGE_TYPE: Image,
+    DISPARITY_TYPE: DisparityImage,
+    CAMERA_INFO_TYPE: CameraInfo,
+    POINT_CLOUD_TYPE: PointCloud2,
+}
 
 
 def method_topic(method: str, leaf: str) -> str:
@@ -143,7 +149,10 @@ class EvaluatorNode(Node):
             )
             self._replay_thread.start()
         else:
+            self._tf_listener = self._static_transforms()
             for topic, type_name in self.config.topics.items():
+                if topic == self.config.tf_topic:
+                    continue  # subscribed by _static_transforms
                 self.create_subscription(
                     _MESSAGE_CLASSES[type_name],
                     topic,
@@ -158,6 +167,19 @@ class EvaluatorNode(Node):
         )
 
     # -- input ------------------------------------------------------------------------------
+
+    def _static_transforms(self) -> Any:
+        """Point-cloud GT without lidar_extrinsic: tf2_ros's buffer, else raw /tf_static."""
+        topic = self.config.tf_topic
+        if topic is None:
+            return None
+        found = static_tf.tf2_lookup(self)
+        if found is not None:
+            self._live.core.extrinsic_lookup, listener = found
+            return listener
+        return self.create_subscription(
+            static_tf.tf_message_class(), topic, self._subscriber(topic), static_tf.static_tf_qos()
+        )
 
     def _subscriber(self, topic: str) -> Callable[[Any], None]:
         def callback(msg: Any) -> None:
