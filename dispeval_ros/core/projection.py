@@ -19,6 +19,7 @@ Everything here is pure (arrays in, arrays out); the loops are numba-compiled.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,7 +136,7 @@ def project_cloud(
         raise ConfigurationError(f"image size must be positive, got {width}×{height}")
     chosen = CloudFilter() if cloud_filter is None else cloud_filter
     m = _matrix(matrix, (3, 4), "the projection matrix")
-    depth = np.empty((height, width), dtype=np.float64)
+    depth = _depth_buffer(height, width)
     disparity = np.zeros((height, width), dtype=np.float32)
     counts = _project(
         np.ascontiguousarray(xyz),
@@ -148,6 +149,22 @@ def project_cloud(
         disparity,
     )
     return CloudProjection(disparity, *(int(c) for c in counts))
+
+
+_BUFFERS = threading.local()
+
+
+def _depth_buffer(height: int, width: int) -> np.ndarray:
+    """This thread's z-buffer (float32, all ``inf``), kept between calls of one image size.
+
+    The kernel leaves it all ``inf`` again by resetting only the pixels it touched, so a
+    frame costs no full-image fill.
+    """
+    buffer = getattr(_BUFFERS, "depth", None)
+    if buffer is None or buffer.shape != (height, width):
+        buffer = np.full((height, width), np.inf, dtype=np.float32)
+        _BUFFERS.depth = buffer
+    return buffer
 
 
 @njit(cache=True, nogil=True)
@@ -163,8 +180,7 @@ def _project(
 ) -> tuple[int, int, int, int, int]:  # pragma: no cover - compiled
     """z-buffer projection, parallax filter and disparity in one call (see the module)."""
     height, width = depth.shape
-    flat_depth = depth.ravel()
-    flat_depth[:] = np.inf
+    flat_depth = depth.ravel()  # all inf on entry; touched pixels are reset on exit
     hit = np.empty(min(xyz.shape[0], height * width), dtype=np.int64)
     n_hit = 0
     finite = 0
@@ -194,7 +210,7 @@ def _project(
             hit[n_hit] = index
             n_hit += 1
         if w < previous:
-            flat_depth[index] = w
+            flat_depth[index] = np.float32(w)
     removed = 0
     half = window // 2
     flat_disparity = disparity.ravel()
@@ -205,17 +221,21 @@ def _project(
         if window > 1:
             row = index // width
             col = index - row * width
-            limit = z / (1.0 + gap)
+            limit = np.float32(z / (1.0 + gap))
+            c0 = max(col - half, 0)
+            c1 = min(col + half + 1, width)
             for r in range(max(row - half, 0), min(row + half + 1, height)):
                 base = r * width
-                for c in range(max(col - half, 0), min(col + half + 1, width)):
-                    if flat_depth[base + c] < limit:
+                for c in range(base + c0, base + c1):
+                    if flat_depth[c] < limit:
                         keep = False
                         break
                 if not keep:
                     break
         if keep:
-            flat_disparity[index] = fb / z - doffs
+            flat_disparity[index] = fb / np.float64(z) - doffs
         else:
             removed += 1
+    for k in range(n_hit):
+        flat_depth[hit[k]] = np.inf
     return finite, in_front, inside, n_hit - removed, removed
