@@ -16,12 +16,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from bench_scoring import timed  # this folder is on sys.path when run as a script
 
 from dispeval_ros.core import Camera
 from dispeval_ros.core.projection import CloudFilter, project_cloud, rectified_projection
@@ -36,17 +34,6 @@ DATA = (
 )
 KITTI_FRAMES = ("000010", "000043", "000112", "000150")
 SHAPE = (375, 1242)
-
-
-def timed(function: Callable[[], object], repeat: int) -> float:
-    """Median wall time of ``function`` in milliseconds (after one warm-up call)."""
-    function()
-    samples = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        samples.append((time.perf_counter() - start) * 1e3)
-    return statistics.median(samples)
 
 
 def numpy_projection(

@@ -241,13 +241,7 @@ def test_camera_info_of_another_size_is_reported() -> None:
 
 
 def test_config_record_and_defaults() -> None:
-    config = CoreConfig(
-        methods={"m": "/m"},
-        gt_topic="/points",
-        gt_kind="pointcloud",
-        left_info_topic="/l",
-        right_info_topic="/r",
-    )
+    config = _core().config
     assert config.topics["/points"] == "sensor_msgs/msg/PointCloud2"
     assert config.topics["/tf_static"] == "tf2_msgs/msg/TFMessage"
     assert config.as_record()["cloud_filter"] == "7,0.1"

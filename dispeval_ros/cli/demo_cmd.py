@@ -11,6 +11,7 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
@@ -18,6 +19,10 @@ from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.offline.summary import RunSummary
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.live.core import CoreConfig
 
 HELP = "run the whole evaluation on the bundled sample bag (or one synthetic scene)"
 SHOWN = ("n", "density", "bmp", "mae", "rmse", "d1", "sze", "sze_mean", "bmpre")
@@ -60,7 +65,6 @@ def replay_sample(args: argparse.Namespace) -> int:
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.live.core import CoreConfig
-    from dispeval_ros.offline.bag_eval import evaluate_bags
     from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
     from dispeval_ros.offline.summary import summarize
@@ -88,13 +92,7 @@ def replay_sample(args: argparse.Namespace) -> int:
     }
     progress = Progress("dispeval demo", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
-        evaluate_bags(
-            [bag],
-            config,
-            store,
-            slice_ns=1_000_000_000,
-            progress=lambda done, total, r: progress.update(done, total, r.frames),
-        )
+        _evaluate_sample(bag, config, store, progress)
         rows = store.export_csv(out / "frames.csv")
         summary = summarize(store)
         problems = store.problems()
@@ -130,7 +128,6 @@ def robot_mode(
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.live.core import CoreConfig
-    from dispeval_ros.offline.bag_eval import evaluate_bags
     from dispeval_ros.offline.make_bag import CLOUD_TOPIC, LEFT_INFO, RIGHT_INFO
     from dispeval_ros.offline.summary import summarize
 
@@ -145,15 +142,24 @@ def robot_mode(
         right_info_topic=RIGHT_INFO,
     )
     with ResultsStore.create(out, {"bag": str(bag), **config.as_record()}) as store:
-        evaluate_bags(
-            [bag],
-            config,
-            store,
-            slice_ns=1_000_000_000,
-            progress=lambda done, total, r: progress.update(done, total, r.frames),
-        )
+        _evaluate_sample(bag, config, store, progress)
         store.export_csv(out / "frames.csv")
         return summarize(store)
+
+
+def _evaluate_sample(
+    bag: Path, config: CoreConfig, store: ResultsStore, progress: Progress
+) -> None:
+    """The sample bag through the offline pipeline, in 1 s slices, with a progress line."""
+    from dispeval_ros.offline.bag_eval import evaluate_bags
+
+    evaluate_bags(
+        [bag],
+        config,
+        store,
+        slice_ns=1_000_000_000,
+        progress=lambda done, total, r: progress.update(done, total, r.frames),
+    )
 
 
 def robot_text(dense: RunSummary, lidar: RunSummary) -> str:
