@@ -673,3 +673,53 @@ def test_point_cloud_without_extrinsic_needs_tf2_or_the_parameter(ros: Ros) -> N
             left_camera_info=topics.left,
             right_camera_info=topics.right,
         )
+
+
+def test_bag_replay_with_point_cloud_reads_tf_static_from_the_bag(ros: Ros, tmp_path: Path) -> None:
+    from dispeval_ros.cli.main import main
+    from dispeval_ros.offline.make_bag import CLOUD_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
+    from dispeval_ros.offline.sample import find_sample_bag
+
+    bag = find_sample_bag()
+    assert bag is not None
+    methods = {name: disparity_topic(name) for name in ("sgbm", "bm_fast")}
+    out = tmp_path / "bag"
+    args = ["bag", str(bag), "--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO]
+    for name, topic in methods.items():
+        args += ["--method", f"{name}={topic}"]
+    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        expected = {stamp: store.frame_scores(sequence, stamp) for stamp in store.stamps(sequence)}
+    assert len(expected) == 25
+
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    stop = __import__("threading").Event()
+    node = ros.add(
+        evaluator_node.EvaluatorNode(
+            stop=stop,
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("methods", value=[f"{n}:{t}" for n, t in methods.items()]),
+                Parameter("gt_topic", value=CLOUD_TOPIC),
+                Parameter("gt_kind", value="pointcloud"),
+                Parameter("left_camera_info", value=LEFT_INFO),
+                Parameter("right_camera_info", value=RIGHT_INFO),
+                Parameter("bag", value=str(bag)),
+                Parameter("bag_rate", value=0.0),
+                Parameter("bag_wait_subscribers", value=1),
+            ],
+        )
+    )
+    assert node.config.tf_topic == "/tf_static"
+    assert ros.spin_until(stop.is_set, 120), "the replay did not end"
+    node.finish()
+    assert ros.spin_until(lambda: len(scores) == 25)
+    for array in scores:
+        stamp = stamp_ns(array.header)
+        for method, status in statuses(array).items():
+            assert convert.status_level(status) == OK, status.message
+            rebuilt = scores_from_status(convert.status_values(status))
+            np.testing.assert_array_equal(rebuilt.sums, expected[stamp][method].sums)

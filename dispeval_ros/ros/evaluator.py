@@ -246,6 +246,9 @@ class EvaluatorNode(Node):
         as_fast_as_possible = self.options.bag_rate is None
 
         def push(topic: str, msg: Any) -> None:
+            if topic == self.config.tf_topic:  # static transforms: no header, no stamp shift
+                self._push(topic, msg)
+                return
             stamp = stamp_ns(msg.header)
             if not span:
                 span.extend((stamp, stamp))
