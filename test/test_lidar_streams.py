@@ -328,3 +328,17 @@ def test_demo_shows_robot_mode(tmp_path: Path, capsys: Any) -> None:
         (sequence,) = store.sequences()
         assert len(store.stamps(sequence)) == 25
         assert store.problems() == []
+
+
+def test_slices_without_tf_static_and_report_thumbnails(drive: Path, tmp_path: Path) -> None:
+    from dispeval_ros.report.data import error_thumbnails
+
+    whole = _run_bag(drive, tmp_path / "whole")
+    sliced = _run_bag(drive, tmp_path / "sliced", "--slice", "0.1")  # /tf_static in one only
+    assert sliced.keys() == whole.keys()
+    for key, scores in whole.items():
+        np.testing.assert_array_equal(sliced[key].sums, scores.sums)
+    with ResultsStore.open(tmp_path / "sliced") as store:
+        thumbnails = error_thumbnails(store, [drive], count=2)
+    assert thumbnails is not None
+    assert len(thumbnails["frames"]) == 2

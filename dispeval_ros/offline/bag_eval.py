@@ -86,6 +86,18 @@ def plan_units(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> 
     return units
 
 
+def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
+    """Give ``core`` every /tf_static message of the bag (point-cloud GT without --extrinsic).
+
+    Static transforms are latched: recorded once, near the start, so a slice of the bag read
+    on its own would miss them.
+    """
+    topic = core.config.tf_topic
+    if topic:
+        for _, _, msg in source.messages([topic]):
+            core.push(topic, msg)
+
+
 def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     """Read, join and score one slice; per-frame problems are recorded, never raised."""
     result = UnitResult(unit)
@@ -114,9 +126,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     read_to = None if unit.stop_ns > 2**61 else unit.stop_ns + unit.margin_ns
     try:
         with BagSource(unit.path) as source:
-            if config.tf_topic:  # static transforms are latched: sent once, read them all
-                for topic, _, msg in source.messages([config.tf_topic]):
-                    core.push(topic, msg)
+            push_static_transforms(source, core)
             for topic, _, msg in source.messages(list(config.topics), read_from, read_to):
                 result.messages += 1
                 handle(core.push(topic, msg))

@@ -506,6 +506,10 @@ def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
     for key in ("gt_kind", "gt_scale", "missing", "delta", "mu", "tolerance_ns", "lateness_ns"):
         if config.get(key) is not None:
             options[key] = config[key]
+    if config.get("cloud_filter") is not None:  # point-cloud GT
+        options["cloud_filter"] = str(config["cloud_filter"])
+    if config.get("extrinsic"):
+        options["extrinsic"] = tuple(float(v) for v in config["extrinsic"])
     if config.get("criteria"):
         options["criteria"] = tuple(config["criteria"])
     return CoreConfig(
@@ -584,6 +588,7 @@ def error_thumbnails(
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.live.core import EvaluationCore
     from dispeval_ros.live.images import colour_error
+    from dispeval_ros.offline.bag_eval import push_static_transforms
 
     if count <= 0 or not bags:
         return None
@@ -601,6 +606,7 @@ def error_thumbnails(
         with BagSource(matched[sequence]) as source:
             for stamp in wanted:
                 core = EvaluationCore(config, error_images=True)
+                push_static_transforms(source, core)
                 found = None
                 messages = source.messages(list(config.topics), stamp - margin, stamp + margin + 1)
                 for topic, _, msg in messages:
