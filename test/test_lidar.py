@@ -167,7 +167,7 @@ def test_cloud_filter_parse() -> None:
     assert not CloudFilter.parse("0").enabled
     assert CloudFilter.parse("5,0.2") == CloudFilter(5, 0.2)
     assert str(CloudFilter(5, 0.2)) == "5,0.2"
-    for bad in ("5", "a,b", "2.5,0.1", "-3,0.1", "3,-1"):
+    for bad in ("5", "a,b", "2.5,0.1", "-3,0.1", "3,-1", "6,0.1"):
         with pytest.raises(ConfigurationError, match="cloud filter"):
             CloudFilter.parse(bad)
 

@@ -35,15 +35,17 @@ DEFAULT_FILTER_GAP = 0.1
 
 @dataclass(frozen=True)
 class CloudFilter:
-    """The LiDAR–camera parallax filter: window side ``window`` (px, 0 = off) and gap ``gap``."""
+    """The LiDAR–camera parallax filter: window side ``window`` (odd, px; 0 = off), gap ``gap``."""
 
     window: int = DEFAULT_FILTER_WINDOW
     gap: float = DEFAULT_FILTER_GAP
 
     def __post_init__(self) -> None:
-        if not isinstance(self.window, int) or self.window < 0:
+        even = isinstance(self.window, int) and self.window > 0 and self.window % 2 == 0
+        if not isinstance(self.window, int) or self.window < 0 or even:
             raise ConfigurationError(
-                f"cloud filter window must be an integer ≥ 0 px (0 disables), got {self.window!r}"
+                "cloud filter window must be an odd number of px (centred on the point), or 0 "
+                f"to disable, got {self.window!r}"
             )
         if not (isinstance(self.gap, (int, float)) and math.isfinite(self.gap) and self.gap >= 0):
             raise ConfigurationError(f"cloud filter gap must be a number ≥ 0, got {self.gap!r}")
