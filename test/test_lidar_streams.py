@@ -342,3 +342,26 @@ def test_slices_without_tf_static_and_report_thumbnails(drive: Path, tmp_path: P
         thumbnails = error_thumbnails(store, [drive], count=2)
     assert thumbnails is not None
     assert len(thumbnails["frames"]) == 2
+
+
+def test_bag_without_tf_static_asks_for_the_extrinsic(tmp_path: Path, capsys: Any) -> None:
+    frames = synthetic_frames(1, 128, 48, FPS, seed=1, lidar=LidarModel())
+    bag = tmp_path / "no_tf"
+    methods = [m for m in default_methods(128) if m.name == "sgbm"]
+    write_bag(bag, frames, methods=methods)
+    # The same bag without /tf_static: copy every other topic.
+    from dispeval_ros.io.bags import BagSource, BagWriter
+
+    stripped = tmp_path / "stripped"
+    with BagSource(bag) as source, BagWriter(stripped, "rosbag2-mcap") as writer:
+        for topic, info in source.topics.items():
+            if topic != "/tf_static":
+                writer.add_topic(topic, info.msgtype)
+        for topic, log_time, msg in source.messages(
+            [t for t in source.topics if t != "/tf_static"]
+        ):
+            writer.write(topic, log_time, msg)
+    args = ["bag", str(stripped), "--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO]
+    args += ["--method", f"sgbm={disparity_topic('sgbm')}", "--out", str(tmp_path / "out")]
+    assert main(args) == 2
+    assert "has no /tf_static to take the LiDAR → camera transform from" in capsys.readouterr().err

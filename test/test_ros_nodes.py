@@ -723,3 +723,52 @@ def test_bag_replay_with_point_cloud_reads_tf_static_from_the_bag(ros: Ros, tmp_
             assert convert.status_level(status) == OK, status.message
             rebuilt = scores_from_status(convert.status_values(status))
             np.testing.assert_array_equal(rebuilt.sums, expected[stamp][method].sums)
+
+
+def test_tf2_ros_lookup_glue(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tf2_ros path (tf2_ros is not on PyPI: a stand-in module with its API)."""
+    import sys
+    from types import SimpleNamespace
+
+    from dispeval_ros.core.transforms import matrix_from_pose
+    from dispeval_ros.errors import CalibrationError
+    from dispeval_ros.ros import static_tf
+
+    class TransformException(Exception):
+        pass
+
+    class Buffer:
+        def lookup_transform(self, target: str, source: str, time: Any) -> Any:
+            if source != "velodyne":
+                raise TransformException(f'"{source}" passed to lookupTransform does not exist')
+            return SimpleNamespace(
+                transform=SimpleNamespace(
+                    translation=SimpleNamespace(x=0.1, y=-0.2, z=0.3),
+                    rotation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0),
+                )
+            )
+
+        def all_frames_as_string(self) -> str:
+            return "Frame velodyne exists with parent base_link.\n"
+
+    listeners: list[Any] = []
+    fake = SimpleNamespace(
+        Buffer=Buffer,
+        StaticTransformListener=lambda buffer, node: listeners.append((buffer, node)) or "L",
+        TransformException=TransformException,
+    )
+    monkeypatch.setitem(sys.modules, "tf2_ros", fake)
+    found = static_tf.tf2_lookup("node")
+    assert found is not None
+    lookup, listener = found
+    assert listener == "L"
+    assert listeners[0][1] == "node"
+    np.testing.assert_array_equal(
+        lookup("stereo_left", "velodyne"), matrix_from_pose([0.1, -0.2, 0.3], [0, 0, 0, 1])
+    )
+    with pytest.raises(CalibrationError) as error:
+        lookup("stereo_left", "os_lidar")
+    message = str(error.value)
+    assert "cloud frame 'os_lidar'" in message
+    assert "camera frame 'stereo_left'" in message
+    assert "Frame velodyne exists with parent base_link." in message

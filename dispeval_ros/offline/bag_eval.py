@@ -63,6 +63,11 @@ def sequence_names(bags: Sequence[Path]) -> list[str]:
 def check_topics(source: BagSource, config: CoreConfig) -> None:
     """Every configured topic exists with the expected type (else one error listing the bag's topics)."""
     for topic, msgtype in config.topics.items():
+        if topic == config.tf_topic and topic not in source.topics:
+            raise InputError(
+                f"{source.path} has no {topic} to take the LiDAR → camera transform from; "
+                "give it with --extrinsic FILE (a 4×4 matrix or 'x y z qx qy qz qw')"
+            )
         require_topic(source, topic, [msgtype])
 
 
