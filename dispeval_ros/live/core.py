@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -206,7 +206,7 @@ class EvaluationCore:
         self._infos: dict[str, Any] = {}
         self._camera: Camera | None = None
         self.transforms = TransformTree()
-        self.extrinsic_lookup: Any = None
+        self.extrinsic_lookup: Callable[[str, str], np.ndarray] | None = None
         """Point-cloud GT: ``(camera frame, cloud frame) → 4×4`` used instead of /tf_static
         (the rclpy node sets it to a tf2_ros buffer lookup)."""
         self._cloud_filter = CloudFilter.parse(config.cloud_filter)
