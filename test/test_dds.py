@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
-from sample_feed import bag_reference, dispeval_process
+from sample_feed import dispeval_process
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.dds import environment, wire
@@ -34,7 +34,13 @@ from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.live.vectors import StatusRecord, scores_from_status
-from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
+from dispeval_ros.offline.make_bag import (
+    CLOUD_TOPIC,
+    GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
+    TF_STATIC_TOPIC,
+)
 from dispeval_ros.offline.sample import find_sample_bag
 
 HAVE_DDS = importlib.util.find_spec("cyclonedds") is not None
@@ -419,10 +425,38 @@ def test_a_looping_stream_makes_new_sequences(
 # -- dispeval live + dispeval play, separate processes ---------------------------------------
 
 
+GT_MODES = {
+    "image": ["--gt", GT_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO],
+    "cloud": ["--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO],
+}
+"""Ground truth as an image, or from the LiDAR with the extrinsic from /tf_static."""
+
+
 @pytest.fixture(scope="module")
-def reference(sample: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[int, str], Any]:
+def references(
+    sample: Path, methods: dict[str, str], tmp_path_factory: pytest.TempPathFactory
+) -> Callable[[str], dict[tuple[int, str], Any]]:
     """What ``dispeval bag`` stores for the sample bag: (GT stamp, method) → Scores."""
-    return bag_reference(sample, tmp_path_factory.mktemp("bag") / "out")
+    cache: dict[str, dict[tuple[int, str], Any]] = {}
+
+    def reference(mode: str) -> dict[tuple[int, str], Any]:
+        if mode not in cache:
+            out = tmp_path_factory.mktemp("bag") / "out"
+            args = ["bag", str(sample), *GT_MODES[mode]]
+            for name, topic in methods.items():
+                args += ["--method", f"{name}={topic}"]
+            assert main([*args, "--out", str(out), "--quiet"]) == 0
+            with ResultsStore.open(out) as store:
+                (sequence,) = store.sequences()
+                assert store.problems() == []
+                cache[mode] = {
+                    (stamp, method): scores
+                    for stamp in store.stamps(sequence)
+                    for method, scores in store.frame_scores(sequence, stamp).items()
+                }
+        return cache[mode]
+
+    return reference
 
 
 def _assert_same_scores(rebuilt: Any, expected: Any, where: Any) -> None:
@@ -434,18 +468,24 @@ def _assert_same_scores(rebuilt: Any, expected: Any, where: Any) -> None:
 
 
 @needs_dds
+@pytest.mark.parametrize("gt_mode", sorted(GT_MODES))
 def test_live_and_play_over_dds_match_dispeval_bag(
     sample: Path,
     methods: dict[str, str],
-    reference: dict[tuple[int, str], Any],
+    references: Callable[[str], dict[tuple[int, str], Any]],
     localhost: Path,
     tmp_path: Path,
+    gt_mode: str,
 ) -> None:
     from dispeval_ros.dds.transport import DdsTransport
 
+    reference = references(gt_mode)
     domain = fresh_domain()
     gt_stamps = sorted({stamp for stamp, _ in reference})
-    topics = [GT_TOPIC, LEFT_INFO, RIGHT_INFO, *methods.values()]
+    gt_topics = [GT_TOPIC] if gt_mode == "image" else [CLOUD_TOPIC, TF_STATIC_TOPIC]
+    topics = [*gt_topics, LEFT_INFO, RIGHT_INFO, *methods.values()]
+    with BagSource(sample) as source:
+        published = sum(source.topics[topic].count for topic in topics)
     dds = ["--domain-id", str(domain), "--dds-config", "localhost"]
     out = tmp_path / "live"
     scores: list[tuple[int, list[StatusRecord]]] = []
@@ -477,12 +517,8 @@ def test_live_and_play_over_dds_match_dispeval_bag(
         live_log = tmp_path / "live.log"
         live = dispeval_process(
             "live",
-            "--gt",
-            GT_TOPIC,
+            *GT_MODES[gt_mode],
             *method_args,
-            "--camera-info",
-            LEFT_INFO,
-            RIGHT_INFO,
             "--out",
             str(out),
             "--summary-every",
@@ -510,7 +546,7 @@ def test_live_and_play_over_dds_match_dispeval_bag(
             log=play_log,
         )
         assert play.wait(timeout=90) == 0, play_log.read_text(errors="replace")
-        assert "published 175 messages" in play_log.read_text()
+        assert f"published {published} messages" in play_log.read_text()
 
         def settled() -> bool:
             with lock:

@@ -868,6 +868,8 @@ LAYOUTS = {
     "eth3d-two-view/terrace": "eth3d",
     "sceneflow-flyingthings3d-seq": "sceneflow",
     "tartanair-oldtown": "tartanair",
+    "kitti-lidar/stereo-rcnn-demo": "kitti-lidar",
+    "kitti-lidar/kitti2015-with-velodyne": "kitti-lidar",
     **{f"middeval3-training-Q/{scene}": "middeval3" for scene in MIDDEVAL3_SCENES},
 }
 

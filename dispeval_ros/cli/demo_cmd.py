@@ -11,15 +11,23 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import objective_matrix
+from dispeval_ros.offline.summary import RunSummary
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.live.core import CoreConfig
 
 HELP = "run the whole evaluation on the bundled sample bag (or one synthetic scene)"
 SHOWN = ("n", "density", "bmp", "mae", "rmse", "d1", "sze", "sze_mean", "bmpre")
+ROBOT_SHOWN = ("bmp", "mae", "d1")
+"""Measures shown side by side for the dense GT and the LiDAR GT (robot mode)."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -28,7 +36,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "demo",
         help=HELP,
         description=HELP + ". The sample bag holds a few seconds of synthetic driving with exact "
-        "GT and OpenCV StereoBM/StereoSGBM variants published as DisparityImages.",
+        "GT and OpenCV StereoBM/StereoSGBM variants published as DisparityImages, and a "
+        "simulated LiDAR: robot mode scores the same frames against the LiDAR's projected scan "
+        "(/lidar/points with /tf_static) beside the dense GT.",
     )
     parser.add_argument("--out", type=Path, help="results folder (default: a new temporary folder)")
     parser.add_argument(
@@ -55,7 +65,6 @@ def replay_sample(args: argparse.Namespace) -> int:
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.live.core import CoreConfig
-    from dispeval_ros.offline.bag_eval import evaluate_bags
     from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
     from dispeval_ros.offline.records import record_bag_provenance
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
@@ -84,13 +93,7 @@ def replay_sample(args: argparse.Namespace) -> int:
     }
     progress = Progress("dispeval demo", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
-        evaluate_bags(
-            [bag],
-            config,
-            store,
-            slice_ns=1_000_000_000,
-            progress=lambda done, total, r: progress.update(done, total, r.frames),
-        )
+        _evaluate_sample(bag, config, store, progress)
         rows = store.export_csv(out / "frames.csv")
         summary = summarize(store)
         problems = store.problems()
@@ -103,16 +106,92 @@ def replay_sample(args: argparse.Namespace) -> int:
         thumbnails = error_thumbnails(store, [bag], config=config)
         write_report(build_report_data(store, title="dispeval demo", thumbnails=thumbnails), report)
         # -- end of the report
+    robot = robot_mode(bag, methods, out / "robot", progress)
     if args.json:
         document = {"results": str(out), "bag": str(bag), "report": str(report)}
+        if robot is not None:
+            document["robot"] = robot.to_dict()  # type: ignore[assignment]
         print_json({**document, **summary.to_dict(), "provenance": provenance})
         return 0
     print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
     print(run_summary_text(summary, problems))
+    if robot is not None:
+        print("\n" + robot_text(summary, robot))
     print(f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'})")
     print(f"report: {report}")
     print(f"(done in {time.perf_counter() - started:.1f} s)")
     return 0
+
+
+def robot_mode(
+    bag: Path, methods: dict[str, str], out: Path, progress: Progress
+) -> RunSummary | None:
+    """The same frames scored against the sample's LiDAR (None if the bag has no LiDAR)."""
+    from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.offline.make_bag import CLOUD_TOPIC, LEFT_INFO, RIGHT_INFO
+    from dispeval_ros.offline.summary import summarize
+
+    with BagSource(bag) as source:
+        if CLOUD_TOPIC not in source.topics:
+            return None
+    config = CoreConfig(
+        methods=methods,
+        gt_topic=CLOUD_TOPIC,
+        gt_kind="pointcloud",
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+    )
+    with ResultsStore.create(out, {"bag": str(bag), **config.as_record()}) as store:
+        _evaluate_sample(bag, config, store, progress)
+        store.export_csv(out / "frames.csv")
+        return summarize(store)
+
+
+def _evaluate_sample(
+    bag: Path, config: CoreConfig, store: ResultsStore, progress: Progress
+) -> None:
+    """The sample bag through the offline pipeline, in 1 s slices, with a progress line."""
+    from dispeval_ros.offline.bag_eval import evaluate_bags
+
+    evaluate_bags(
+        [bag],
+        config,
+        store,
+        slice_ns=1_000_000_000,
+        progress=lambda done, total, r: progress.update(done, total, r.frames),
+    )
+
+
+def robot_text(dense: RunSummary, lidar: RunSummary) -> str:
+    """Per method, criterion ``all``: the dense GT's and the LiDAR GT's scores side by side."""
+    dense_scores = dense.sequences[0].scores
+    lidar_scores = lidar.sequences[0].scores
+    header = ["method", "n dense", "n LiDAR"]
+    for measure in ROBOT_SHOWN:
+        header += [f"{measure} dense", f"{measure} LiDAR"]
+    header += ["mae_z m", "irmse 1/km"]
+    rows = [header]
+    for method, scores in dense_scores.items():
+        if method not in lidar_scores:
+            continue
+        a, b = scores["all"], lidar_scores[method]["all"]
+        row = [method, f"{a['n']:.0f}", f"{b['n']:.0f}"]
+        for measure in ROBOT_SHOWN:
+            row += [f"{a[measure]:.3f}", f"{b[measure]:.3f}"]
+        row += [f"{b['mae_z']:.3f}", f"{b['irmse']:.3f}"]
+        rows.append(row)
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    lines = ["  ".join(cell.rjust(w) for cell, w in zip(row, widths, strict=True)) for row in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    ranking = [m for m, _ in sorted(lidar_scores.items(), key=lambda item: item[1]["all"]["mae"])]
+    return (
+        "robot mode: the same frames against the simulated LiDAR (/lidar/points, extrinsic from "
+        "/tf_static, parallax filter 7,0.1), criterion all, summed over the common frames\n"
+        + "\n".join(lines)
+        + f"\nby LiDAR mae: {', '.join(ranking)}"
+    )
 
 
 def single_scene(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ from dispeval_ros.cli import common, protocol_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, Scores, evaluate_models
+from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
 from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError, DispevalError
 
@@ -140,6 +141,10 @@ def run(args: argparse.Namespace) -> int:
         gt_name = str(args.scene)
         if args.gt is not None:
             raise ConfigurationError("give either --scene or --gt, not both")
+        if scene.layout == "kitti-lidar":  # LiDAR GT: metric depth ranges, depth measures
+            args.depth_ranges = args.depth_ranges or "0-10,10-30,30-inf"
+            if args.measures is None:
+                args.measures = [*DEFAULT_MEASURES, *DEPTH_MEASURES]
     elif args.gt is not None:
         gt = read_disparity(args.gt, scale=args.gt_scale)
         gt_name = str(args.gt)

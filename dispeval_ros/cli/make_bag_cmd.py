@@ -44,6 +44,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="synthetic world seed (default 0)")
     parser.add_argument(
+        "--no-lidar",
+        action="store_true",
+        help="synthetic drive without its simulated LiDAR (32 beams, ±15°, 0.2° azimuth, "
+        "0.4 m above and 0.3 m behind the left camera; published on /lidar/points with "
+        "/tf_static). A kitti-lidar --scene always publishes its scans",
+    )
+    parser.add_argument(
         "--compress",
         action="store_true",
         help="zstd-compress MCAP chunks (smaller, slower to read; rosbag2 records uncompressed by default)",
@@ -55,6 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Render or read the frames, run the methods, write the bag."""
     from dispeval_ros.offline.make_bag import dataset_frames, synthetic_frames, write_bag
+    from dispeval_ros.testbed.lidar import LidarModel
 
     if args.frames < 1 or args.fps <= 0 or args.width < 64 or args.height < 32:
         raise ConfigurationError("need --frames ≥ 1, --fps > 0, --width ≥ 64 and --height ≥ 32")
@@ -62,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         frames = dataset_frames(args.scene)
         total = None
     else:
-        frames = synthetic_frames(args.frames, args.width, args.height, args.fps, args.seed)
+        lidar = None if args.no_lidar else LidarModel()
+        frames = synthetic_frames(args.frames, args.width, args.height, args.fps, args.seed, lidar)
         total = args.frames
     progress = Progress("dispeval make-bag", enabled=not args.json)
     summary = write_bag(
@@ -83,4 +92,6 @@ def run(args: argparse.Namespace) -> int:
             f"ground truth: {summary['gt']}; methods: "
             + ", ".join(f"{k}={v}" for k, v in methods.items())
         )
+        if "gt_cloud" in summary:
+            print(f"LiDAR: {summary['gt_cloud']} with {summary['tf_static']}")
     return 0

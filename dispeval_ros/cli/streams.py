@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.measures import SEQUENCE_MEASURES
+from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
+from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
 
 if TYPE_CHECKING:
@@ -19,8 +20,13 @@ def add_stream_options(
 ) -> argparse._ArgumentGroup:
     """Topics, sync, evaluation and model options; returns the "run" group for the rest."""
     topics = parser.add_argument_group("topics")
-    topics.add_argument(
-        "--gt", required=True, metavar="TOPIC", help="ground-truth sensor_msgs/Image topic"
+    gt = topics.add_mutually_exclusive_group(required=True)
+    gt.add_argument("--gt", metavar="TOPIC", help="ground-truth sensor_msgs/Image topic")
+    gt.add_argument(
+        "--gt-cloud",
+        metavar="TOPIC",
+        help="ground truth from a LiDAR: a sensor_msgs/PointCloud2 topic projected into the "
+        "left camera (needs --camera-info; the extrinsic comes from /tf_static or --extrinsic)",
     )
     topics.add_argument(
         "--method",
@@ -44,6 +50,21 @@ def add_stream_options(
     )
     topics.add_argument(
         "--gt-scale", type=float, help="16-bit GT divisor (disparity default 256, depth 1000)"
+    )
+    topics.add_argument(
+        "--extrinsic",
+        type=Path,
+        metavar="FILE",
+        help="with --gt-cloud: the cloud → left camera transform (a 4×4 matrix or "
+        "'x y z qx qy qz qw') instead of /tf_static",
+    )
+    topics.add_argument(
+        "--cloud-filter",
+        default=str(CloudFilter()),
+        metavar="W,G",
+        help="with --gt-cloud: drop a point when a point in its W×W pixel window is nearer by "
+        f"more than the relative gap G (LiDAR–camera parallax); '0' disables "
+        f"(default {CloudFilter()})",
     )
     topics.add_argument(
         "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
@@ -101,14 +122,24 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         raise ConfigurationError(
             f"--depth-ranges is not available for {what} yet; use the 3-means depth criteria"
         )
+    cloud = args.gt_cloud is not None
+    if not cloud and (args.extrinsic is not None or args.cloud_filter != str(CloudFilter())):
+        raise ConfigurationError("--extrinsic and --cloud-filter go with --gt-cloud")
     if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
-        args.measures = list(SEQUENCE_MEASURES)
+        args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
     evaluator = common.evaluator_from_args(args)
     left, right = args.camera_info if args.camera_info else (None, None)
+    extrinsic = None
+    if args.extrinsic is not None:
+        from dispeval_ros.io.lidar import read_extrinsic
+
+        extrinsic = tuple(float(v) for v in read_extrinsic(args.extrinsic).reshape(-1))
     return CoreConfig(
         methods=_methods(args.method),
-        gt_topic=args.gt,
-        gt_kind=args.gt_kind,
+        gt_topic=args.gt_cloud if cloud else args.gt,
+        gt_kind="pointcloud" if cloud else args.gt_kind,
+        extrinsic=extrinsic,
+        cloud_filter=str(CloudFilter.parse(args.cloud_filter)),
         gt_scale=args.gt_scale,
         left_info_topic=left,
         right_info_topic=right,

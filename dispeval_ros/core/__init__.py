@@ -20,6 +20,7 @@ from dispeval_ros.core.models import (
     middlebury_ranks,
     pareto_front,
 )
+from dispeval_ros.core.projection import CloudFilter, CloudProjection, project_cloud
 from dispeval_ros.core.protocols import (
     PROTOCOLS,
     FrameData,
@@ -29,6 +30,7 @@ from dispeval_ros.core.protocols import (
     get_protocol,
     summarize_frames,
 )
+from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
     "CRITERION_SETS",
@@ -38,6 +40,8 @@ __all__ = [
     "POLICIES",
     "PROTOCOLS",
     "Camera",
+    "CloudFilter",
+    "CloudProjection",
     "CriterionSet",
     "Evaluator",
     "FrameData",
@@ -48,6 +52,8 @@ __all__ = [
     "Reduction",
     "Reference",
     "Scores",
+    "StaticTransform",
+    "TransformTree",
     "astar_groups",
     "build_partition",
     "dominates",
@@ -60,5 +66,6 @@ __all__ = [
     "middlebury_ranks",
     "pareto_front",
     "parse_measures",
+    "project_cloud",
     "summarize_frames",
 ]

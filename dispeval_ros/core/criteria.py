@@ -24,6 +24,9 @@ CRITERION_SETS = ("all", "visibility", "depth", "roi", "legacy")
 VISIBILITY = ("occluded", "boundary", "interior")
 DEPTH = ("near", "mid", "far")
 LEGACY = ("nonocc", "all", "disc")
+#: Depth ranges (metres) of the ``depth`` criteria for LiDAR GT: 3-means of a scan's
+#: disparities would split mostly by distance along the ground, ranges say what users mean.
+LIDAR_DEPTH_RANGES = ((0.0, 10.0), (10.0, 30.0), (30.0, float("inf")))
 NOT_EVALUATED = -1
 
 
@@ -129,6 +132,45 @@ def discontinuities(
     return jumps.astype(bool)
 
 
+BOUNDARY_MODES = ("auto", "dense", "sparse")
+#: Under ``auto``, GT is sparse when fewer than this share of its valid points have a valid
+#: neighbour both vertically and horizontally (dense GT: > 80 %; semi-dense KITTI: > 20 %;
+#: a LiDAR scan, whose beams are rows several pixels apart: ~0 %).
+SPARSE_CONNECTED_SHARE = 0.02
+#: Fewer valid points than this are too few to tell a scan from a small dense map: dense.
+SPARSE_MIN_POINTS = 256
+
+
+def is_sparse(valid: np.ndarray) -> bool:
+    """Whether GT is sparse: almost no valid point has valid vertical and horizontal neighbours.
+
+    Maps one pixel high or wide, or with fewer than :data:`SPARSE_MIN_POINTS` valid points,
+    are never sparse (the 4-neighbour rule is then kept).
+    """
+    count = int(valid.sum())
+    if count < SPARSE_MIN_POINTS or min(valid.shape) < 2:
+        return False
+    vertical = np.zeros(valid.shape, bool)
+    vertical[1:] |= valid[:-1]
+    vertical[:-1] |= valid[1:]
+    horizontal = np.zeros(valid.shape, bool)
+    horizontal[:, 1:] |= valid[:, :-1]
+    horizontal[:, :-1] |= valid[:, 1:]
+    connected = int((valid & vertical & horizontal).sum())
+    return connected < SPARSE_CONNECTED_SHARE * count
+
+
+def sparse_discontinuities(
+    gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, width: int = 9
+) -> np.ndarray:
+    """Valid points with a valid point in their ``width``-square differing by more than ``gap``.
+
+    The boundary of sparse GT (LiDAR): 4-neighbour jumps need neighbours a scan rarely has.
+    """
+    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
+    return kernels.sparse_jump_mask(gt32, valid, float(gap), int(width)).astype(bool)
+
+
 def visibility_set(
     gt: np.ndarray,
     valid: np.ndarray,
@@ -139,13 +181,21 @@ def visibility_set(
     gap: float = 2.0,
     width: int = 9,
     tolerance: float = 1.0,
+    boundary_mode: str = "auto",
 ) -> CriterionSet:
-    """``occluded`` / ``boundary`` / ``interior`` (with official masks: all∖nonocc, disc, nonocc∖disc)."""
+    """``occluded`` / ``boundary`` / ``interior`` (with official masks: all∖nonocc, disc, nonocc∖disc).
+
+    ``boundary_mode``: ``dense`` (4-neighbour jumps dilated by ``width``), ``sparse``
+    (:func:`sparse_discontinuities`) or ``auto`` (sparse when :func:`is_sparse`).
+    """
     occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
     if disc is not None:
         _check_shape("the 'disc' mask", disc, gt)
         near_jump = disc.astype(bool, copy=False)
         source += ", official disc mask"
+    elif boundary_mode == "sparse" or (boundary_mode == "auto" and is_sparse(valid)):
+        near_jump = sparse_discontinuities(gt, valid, gap, width)
+        source += ", sparse-GT boundary"
     else:
         near_jump = discontinuities(gt, valid, gap, width)
     labels = np.full(gt.shape, 2, np.int32)

@@ -142,6 +142,7 @@ class Evaluator:
         *,
         boundary_gap: float = 2.0,
         boundary_width: int = 9,
+        boundary_mode: str = "auto",
         occlusion_tolerance: float = 1.0,
         depth_ranges: Sequence[tuple[float, float]] | None = None,
         roi_names: Mapping[int, str] | None = None,
@@ -169,6 +170,12 @@ class Evaluator:
         self.mu = float(mu)
         self.boundary_gap = float(boundary_gap)
         self.boundary_width = int(boundary_width)
+        if boundary_mode not in crit.BOUNDARY_MODES:
+            raise ConfigurationError(
+                f"unknown boundary mode '{boundary_mode}'; choose from "
+                f"{', '.join(crit.BOUNDARY_MODES)}"
+            )
+        self.boundary_mode = boundary_mode
         self.occlusion_tolerance = float(occlusion_tolerance)
         self.depth_ranges = list(depth_ranges) if depth_ranges else None
         self.roi_names = dict(roi_names) if roi_names else None
@@ -259,6 +266,7 @@ class Evaluator:
                 gap=self.boundary_gap,
                 width=self.boundary_width,
                 tolerance=self.occlusion_tolerance,
+                boundary_mode=self.boundary_mode,
             )
             return visibility if name == "visibility" else crit.legacy_set(visibility)
         if name == "depth":
@@ -339,6 +347,7 @@ class Evaluator:
             reference.gt_sorted,
             reference.fb,
             reference.depth_offset,
+            self.mu,
             self.thresholds,
             0.0 if self.missing == "ignore" else 1.0,
             cell_sums,

@@ -31,6 +31,14 @@ FIELD_SZE = 6
 FIELD_BMPRE = 7
 FIELD_D1 = 8
 FIELD_BAD = 9
+MAX_THRESHOLDS = 8
+# Depth-domain sums follow the thresholds (so the disparity columns keep their places):
+# Σ|Z_E − Z_D|, Σ(Z_E − Z_D)², Σ|Z_E − Z_D|/Z_D and Σ(1/Z_E − 1/Z_D)².
+FIELD_SUM_EZ = FIELD_BAD + MAX_THRESHOLDS
+FIELD_SUM_EZ2 = FIELD_SUM_EZ + 1
+FIELD_SUM_RELZ = FIELD_SUM_EZ + 2
+FIELD_SUM_IZ2 = FIELD_SUM_EZ + 3
+FIELD_COUNT = FIELD_SUM_EZ + 4
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -114,9 +122,6 @@ def normalise_estimate(
         out[y, :] = -np.abs(out[last_row])
 
 
-MAX_THRESHOLDS = 8
-
-
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def gather_estimate(
     estimate: np.ndarray, order: np.ndarray, lo: float, hi: float, coded: bool, out: np.ndarray
@@ -141,10 +146,18 @@ def _cell_terms(
     gt: np.ndarray,
     fb: float,
     depth_offset: float,
+    mu: float,
     delta: float,
     missing_weight: float,
-) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
-    """Sums of one cell's terms; contiguous slices and no branches, so it vectorises."""
+) -> tuple[
+    float, float, float, float, float, float, float, float, float, float, float, float, float
+]:  # pragma: no cover
+    """Sums of one cell's terms; contiguous slices and no branches, so it vectorises.
+
+    Depth terms use ``Z = f·B / max(d + doffs, μ)``: exact for every point with
+    ``d + doffs ≥ μ``, and a missing estimate scored as 0 costs a large but finite depth.
+    """
+    doffs = depth_offset - mu
     n_valid = 0.0
     n_eval = 0.0
     sum_e = 0.0
@@ -154,6 +167,10 @@ def _cell_terms(
     bmpre = 0.0
     d1 = 0.0
     bad = 0.0
+    sum_ez = 0.0
+    sum_ez2 = 0.0
+    sum_relz = 0.0
+    sum_iz2 = 0.0
     for k in range(values.shape[0]):
         raw = np.float64(values[k])
         weight = 1.0 if raw > 0.0 else missing_weight
@@ -170,7 +187,29 @@ def _cell_terms(
         bmpre += weight * rel if e > delta else 0.0
         d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
         bad += weight if e > delta else 0.0
-    return n_valid, n_eval, sum_e, sum_e2, sum_rel, sze, bmpre, d1, bad
+        inverse_d = max(d + doffs, mu)  # f·B / Z of the GT
+        inverse_e = max(value + doffs, mu)
+        ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
+        sum_ez += weight * ez
+        sum_ez2 += weight * ez * ez
+        sum_relz += weight * abs(inverse_d - inverse_e) / inverse_e  # |Z_E − Z_D| / Z_D
+        iz = (inverse_e - inverse_d) / fb
+        sum_iz2 += weight * iz * iz
+    return (
+        n_valid,
+        n_eval,
+        sum_e,
+        sum_e2,
+        sum_rel,
+        sze,
+        bmpre,
+        d1,
+        bad,
+        sum_ez,
+        sum_ez2,
+        sum_relz,
+        sum_iz2,
+    )
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -193,6 +232,7 @@ def accumulate_cells(
     gt_sorted: np.ndarray,
     fb: float,
     depth_offset: float,
+    mu: float,
     thresholds: np.ndarray,
     missing_weight: float,
     sums: np.ndarray,
@@ -202,7 +242,8 @@ def accumulate_cells(
     ``values`` comes from :func:`gather_estimate` and ``gt_sorted`` holds ``D`` in the
     same (partition) order; ``offsets`` delimit the cells. ``depth_offset`` is
     ``doffs + μ``; the SZE term ``|f·B/(D+o) − f·B/(E+o)|`` is computed as the equal
-    ``f·B·e / |(D+o)(E+o)|``, which has no cancellation. ``thresholds[0]`` is δ (bmp,
+    ``f·B·e / |(D+o)(E+o)|``, which has no cancellation; the depth-domain terms use ``μ`` only
+    as a floor of ``d + doffs`` (see :func:`_cell_terms`). ``thresholds[0]`` is δ (bmp,
     bmpre), the others the bad-x thresholds (``inf`` entries are unused).
     ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
     measures) and 1 otherwise.
@@ -212,7 +253,9 @@ def accumulate_cells(
         stop = offsets[cell + 1]
         cell_values = values[start:stop]
         cell_gt = gt_sorted[start:stop]
-        terms = _cell_terms(cell_values, cell_gt, fb, depth_offset, thresholds[0], missing_weight)
+        terms = _cell_terms(
+            cell_values, cell_gt, fb, depth_offset, mu, thresholds[0], missing_weight
+        )
         row = sums[cell]
         row[FIELD_N] += stop - start
         row[FIELD_VALID] += terms[0]
@@ -224,6 +267,10 @@ def accumulate_cells(
         row[FIELD_BMPRE] += terms[6]
         row[FIELD_D1] += terms[7]
         row[FIELD_BAD] += terms[8]
+        row[FIELD_SUM_EZ] += terms[9]
+        row[FIELD_SUM_EZ2] += terms[10]
+        row[FIELD_SUM_RELZ] += terms[11]
+        row[FIELD_SUM_IZ2] += terms[12]
         for t in range(1, thresholds.shape[0]):
             if thresholds[t] < np.inf:
                 row[FIELD_BAD + t] += _bad_count(
@@ -436,6 +483,35 @@ def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # p
             if y + 1 < height and valid[y + 1, x] and abs(d - gt[y + 1, x]) > gap:
                 jumps[y, x] = 1
                 jumps[y + 1, x] = 1
+    return jumps
+
+
+@njit(cache=True, nogil=True)
+def sparse_jump_mask(
+    gt: np.ndarray, valid: np.ndarray, gap: float, width: int
+) -> np.ndarray:  # pragma: no cover - compiled
+    """1 at every valid point with a valid point in its ``width``-square differing by > ``gap``.
+
+    The definition of depth discontinuities for sparse GT (LiDAR), whose points rarely have
+    valid 4-neighbours; the square is centred on the point (``width // 2`` each side).
+    """
+    height, columns = gt.shape
+    half = max(width, 1) // 2
+    jumps = np.zeros((height, columns), dtype=np.uint8)
+    for y in range(height):
+        for x in range(columns):
+            if not valid[y, x]:
+                continue
+            d = gt[y, x]
+            found = False
+            for r in range(max(y - half, 0), min(y + half + 1, height)):
+                for c in range(max(x - half, 0), min(x + half + 1, columns)):
+                    if valid[r, c] and abs(gt[r, c] - d) > gap:
+                        found = True
+                        break
+                if found:
+                    break
+            jumps[y, x] = 1 if found else 0
     return jumps
 
 

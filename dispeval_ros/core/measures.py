@@ -107,7 +107,7 @@ def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
                 chosen.append(name)
             continue
         raise ConfigurationError(
-            f"unknown measure '{name}'; known: {', '.join(DEFAULT_MEASURES)} "
+            f"unknown measure '{name}'; known: {', '.join((*DEFAULT_MEASURES, *DEPTH_MEASURES))} "
             "(bad_X for any threshold X, aNN for any quantile NN)"
         )
     if not chosen:
@@ -130,7 +130,7 @@ def thresholds_for(measures: Sequence[str], delta: float) -> np.ndarray:
     return np.array(values + [math.inf] * (k.MAX_THRESHOLDS - len(values)), dtype=np.float64)
 
 
-FIELDS = k.FIELD_BAD + k.MAX_THRESHOLDS
+FIELDS = k.FIELD_COUNT
 SUM_FIELDS = (
     "n",
     "n_valid",
@@ -142,8 +142,18 @@ SUM_FIELDS = (
     "bmpre",
     "d1_count",
     *(f"bad_count_{i}" for i in range(k.MAX_THRESHOLDS)),
+    "sum_ez",
+    "sum_ez2",
+    "sum_relz",
+    "sum_iz2",
 )
-"""Names of the accumulator columns (``bad_count_0`` is at δ, the others at the bad-x thresholds)."""
+"""Names of the accumulator columns (``bad_count_0`` is at δ, the others at the bad-x thresholds;
+then the depth-domain sums)."""
+
+DEPTH_MEASURES = ("mae_z", "rmse_z", "absrel_z", "irmse")
+"""Depth-domain measures (metres, or the camera's unit; ``irmse`` in 1/km as KITTI's depth
+devkit). Not in the defaults of disparity GT (they add columns to every table); the default
+for LiDAR GT, whose users think in metres."""
 
 
 def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
@@ -171,6 +181,11 @@ _FROM_SUMS: dict[str, Callable[[np.ndarray], float]] = {
     "bmpre_mean": _mean(k.FIELD_BMPRE),
     "d1": _mean(k.FIELD_D1, 100.0),
     "density": lambda sums: _ratio(sums[k.FIELD_VALID], sums[k.FIELD_N]),
+    "mae_z": _mean(k.FIELD_SUM_EZ),
+    "rmse_z": lambda sums: math.sqrt(_ratio(sums[k.FIELD_SUM_EZ2], sums[k.FIELD_EVAL])),
+    "absrel_z": _mean(k.FIELD_SUM_RELZ),
+    # 1/Z in 1/km: sqrt(mean((1/Z_E − 1/Z_D)²)) · 1000 for Z in metres.
+    "irmse": lambda sums: 1000.0 * math.sqrt(_ratio(sums[k.FIELD_SUM_IZ2], sums[k.FIELD_EVAL])),
 }
 
 

@@ -35,6 +35,7 @@ from dispeval_ros.dds.wire import (
     RESULTS,
     SCORES_TOPIC,
     SENSOR_DATA,
+    STATIC_TF,
     QosProfile,
     vector_topic,
 )
@@ -100,6 +101,7 @@ class DdsEvaluator:
         self._newest_gt: int | None = None
         self._info_topics = {config.left_info_topic, config.right_info_topic} - {None}
         self._infos: dict[str, object] = {}
+        self._static_transforms: list[object] = []
         self.published = 0
         self.publish_errors = 0
         self.restarts = 0
@@ -119,7 +121,9 @@ class DdsEvaluator:
         self.thread = transport.reader_thread("evaluator", on_error)
         self.on_error = self.thread.on_error
         self.readers = [
-            transport.reader(topic, msgtype, subscription)
+            transport.reader(
+                topic, msgtype, STATIC_TF if topic == config.tf_topic else subscription
+            )
             for topic, msgtype in config.topics.items()
         ]
         for reader in self.readers:
@@ -144,6 +148,8 @@ class DdsEvaluator:
             self._newest_gt = stamp if newest is None else max(newest, stamp)
         elif received.topic in self._info_topics:
             self._infos[received.topic] = received.msg
+        elif received.topic == self.config.tf_topic:
+            self._static_transforms.append(received.msg)
         self.live.push(received.topic, received.msg)
 
     def _restart(self) -> None:
@@ -163,6 +169,8 @@ class DdsEvaluator:
             self.restarts += 1
         for topic, msg in self._infos.items():  # the camera is the same in the new pass
             self.live.push(topic, msg)
+        for msg in self._static_transforms:  # and so are the static transforms
+            self.live.push(self.config.tf_topic or "", msg)
 
     # -- output (the scoring thread) ---------------------------------------------------------
 

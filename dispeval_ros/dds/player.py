@@ -30,7 +30,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dispeval_ros.dds.transport import DdsTransport, RawWriter, humble_typestore
-from dispeval_ros.dds.wire import PLAYBACK, QosProfile, normal_msgtype, ros_topic_name
+from dispeval_ros.dds.wire import (
+    PLAYBACK,
+    STATIC_TF,
+    STATIC_TF_TOPIC,
+    QosProfile,
+    normal_msgtype,
+    ros_topic_name,
+)
 from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, TopicInfo, require_topic
 
@@ -213,7 +220,10 @@ class BagPlayer:
             }
             self.writers: dict[str, RawWriter] = {
                 topic: transport.writer(
-                    played.name, played.msgtype, qos, typestore=played.typestore
+                    played.name,
+                    played.msgtype,
+                    STATIC_TF if played.name == STATIC_TF_TOPIC else qos,  # latched, as recorded
+                    typestore=played.typestore,
                 )
                 for topic, played in self.topics.items()
             }

@@ -158,5 +158,8 @@ LATCHED = QosProfile(reliable=True, depth=1, transient_local=True)
 """The latest groups: late subscribers get them at once."""
 SUMMARIZER_INPUT = QosProfile(reliable=True, depth=None)
 """The summarizer's subscription to the scores: every frame, in order."""
+STATIC_TF = QosProfile(reliable=True, depth=100, transient_local=True)
+"""``/tf_static`` as tf2_ros's static broadcaster and listener use it: latched."""
+STATIC_TF_TOPIC = "/tf_static"
 PLAYBACK = QosProfile(reliable=True, depth=10)
 """``ros2 bag play``'s default: reliable, keep-last 10, volatile (matches every subscriber)."""

@@ -20,11 +20,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from dispeval_ros.core.camera import Camera
+from dispeval_ros.core.transforms import StaticTransform, matrix_from_pose, pose_from_matrix
 from dispeval_ros.errors import CalibrationError, ConfigurationError, InputError
 
 if TYPE_CHECKING:
@@ -33,17 +34,23 @@ if TYPE_CHECKING:
 __all__ = [
     "GT_ENCODINGS",
     "IMAGE_ENCODINGS",
+    "CloudFrame",
     "DisparityFrame",
     "ImageFrame",
     "camera_from_info_and_baseline",
     "camera_from_infos",
     "camera_info_to_msg",
+    "cloud_from_msg",
+    "cloud_to_msg",
     "disparity_from_msg",
     "disparity_to_msg",
     "gt_disparity",
     "image_from_msg",
     "image_to_msg",
+    "rectified_camera_from_info",
     "stamp_ns",
+    "static_transforms_from_msg",
+    "tf_static_to_msg",
 ]
 
 _NS = 1_000_000_000
@@ -398,6 +405,177 @@ def camera_from_info_and_baseline(left: Any, baseline: float, topic: str = "") -
     return Camera(f, float(baseline))
 
 
+#: ``sensor_msgs/PointField`` datatypes the x, y, z fields may have.
+_POINT_FIELD_TYPES: dict[int, type[np.generic]] = {7: np.float32, 8: np.float64}
+_POINT_FIELD_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32"}
+
+
+@dataclass(frozen=True, eq=False)
+class CloudFrame:
+    """A decoded ``sensor_msgs/PointCloud2``: its x, y, z as an N×3 array (N = width·height).
+
+    Points keep their order (row by row for organised clouds); invalid points of clouds with
+    ``is_dense`` false stay in as NaN (the projection skips non-finite points). The dtype is
+    float32 when all three fields are float32, else float64.
+    """
+
+    stamp: int
+    frame_id: str
+    points: np.ndarray
+
+
+def _point_field(fields: Any, name: str, where: str) -> tuple[int, type[np.generic]]:
+    """Offset and dtype of the PointField called ``name``."""
+    available = []
+    for entry in fields:
+        entry_name = str(_field(entry, ("name",), where))
+        available.append(entry_name)
+        if entry_name != name:
+            continue
+        datatype = _int(entry, "datatype", where)
+        if datatype not in _POINT_FIELD_TYPES:
+            shown = _POINT_FIELD_NAMES.get(datatype, str(datatype))
+            raise InputError(
+                f"{where}: field '{name}' has datatype {shown}, expected FLOAT32 (7) or FLOAT64 (8)"
+            )
+        count = int(getattr(entry, "count", 1) or 1)
+        if count != 1:
+            raise InputError(f"{where}: field '{name}' has count {count}, expected 1")
+        return _int(entry, "offset", where), _POINT_FIELD_TYPES[datatype]
+    raise InputError(
+        f"{where}: the cloud has no '{name}' field (fields: {', '.join(available) or 'none'});"
+        " expected x, y and z"
+    )
+
+
+def cloud_from_msg(msg: Any, topic: str = "") -> CloudFrame:
+    """Decode the x, y, z of a ``sensor_msgs/msg/PointCloud2`` of any layout.
+
+    Fields may sit at any offsets among others (intensity, ring, padding); ``point_step`` and
+    ``row_step`` may include padding; organised (``height > 1``) and unorganised clouds and
+    both endiannesses are read with one structured numpy view (no per-point Python loop).
+    """
+    where = _where(topic, "PointCloud2")
+    height = _int(msg, "height", where)
+    width = _int(msg, "width", where)
+    point_step = _int(msg, "point_step", where)
+    row_step = _int(msg, "row_step", where)
+    bigendian = bool(getattr(msg, "is_bigendian", False))
+    fields = _field(msg, ("fields",), where)
+    layout = {name: _point_field(fields, name, where) for name in ("x", "y", "z")}
+    header = _field(msg, ("header",), where)
+    stamp, frame_id = stamp_ns(header), str(getattr(header, "frame_id", ""))
+    all_float32 = all(dtype is np.float32 for _, dtype in layout.values())
+    out_dtype = np.float32 if all_float32 else np.float64
+    if height < 0 or width < 0:
+        raise InputError(f"{where}: negative size {width}×{height}")
+    for name, (offset, dtype) in layout.items():
+        size = np.dtype(dtype).itemsize
+        if offset < 0 or offset + size > point_step:
+            raise InputError(
+                f"{where}: field '{name}' at offset {offset} ({size} bytes) does not fit in "
+                f"point_step {point_step}"
+            )
+    row_bytes = width * point_step
+    if height > 1 and row_step < row_bytes:
+        raise InputError(
+            f"{where}: row_step {row_step} is smaller than width·point_step = "
+            f"{width}·{point_step} = {row_bytes}"
+        )
+    step = max(row_step, row_bytes)
+    raw = _bytes(_field(msg, ("data",), where), where)
+    needed = (height - 1) * step + row_bytes if height and width else 0
+    if raw.size < needed:
+        raise InputError(
+            f"{where}: data has {raw.size} bytes, expected at least {needed} for "
+            f"{width}×{height} points of {point_step} bytes (row_step {row_step})"
+        )
+    if needed == 0:
+        return CloudFrame(stamp, frame_id, np.empty((0, 3), dtype=out_dtype))
+    order: Literal["<", ">"] = ">" if bigendian else "<"
+    structured = np.dtype(
+        {
+            "names": list(layout),
+            "formats": [np.dtype(dtype).newbyteorder(order) for _, dtype in layout.values()],
+            "offsets": [offset for offset, _ in layout.values()],
+            "itemsize": point_step,
+        }
+    )
+    if height == 1 or step == row_bytes:
+        packed = raw[: height * row_bytes]
+    else:
+        padded = np.zeros(height * step, dtype=np.uint8)
+        padded[:needed] = raw[:needed]  # the last row's padding may be missing
+        packed = padded.reshape(height, step)[:, :row_bytes].reshape(-1)
+    records = np.ascontiguousarray(packed).view(structured)
+    points = np.empty((records.shape[0], 3), dtype=out_dtype)
+    for column, name in enumerate(layout):
+        points[:, column] = records[name]
+    return CloudFrame(stamp, frame_id, points)
+
+
+def static_transforms_from_msg(msg: Any, topic: str = "") -> list[StaticTransform]:
+    """The edges of a ``tf2_msgs/msg/TFMessage`` (``/tf_static``): parent, child, 4×4 matrix."""
+    where = _where(topic, "TFMessage")
+    edges = []
+    for stamped in _field(msg, ("transforms",), where):
+        header = _field(stamped, ("header",), where)
+        transform = _field(stamped, ("transform",), where)
+        translation = _field(transform, ("translation",), where)
+        rotation = _field(transform, ("rotation",), where)
+        try:
+            matrix = matrix_from_pose(
+                [float(translation.x), float(translation.y), float(translation.z)],
+                [float(rotation.x), float(rotation.y), float(rotation.z), float(rotation.w)],
+            )
+        except (AttributeError, TypeError, ValueError):
+            raise InputError(
+                f"{where}: a transform needs translation x, y, z and rotation x, y, z, w"
+            ) from None
+        except CalibrationError as error:
+            raise CalibrationError(f"{where}: {error}") from None
+        parent = str(getattr(header, "frame_id", ""))
+        child = str(_field(stamped, ("child_frame_id",), where))
+        edges.append(StaticTransform(parent, child, matrix))
+    return edges
+
+
+@dataclass(frozen=True, eq=False)
+class RectifiedView:
+    """The left camera's geometry from its CameraInfo: what a cloud is projected with."""
+
+    frame_id: str
+    width: int
+    height: int
+    rectification: np.ndarray
+    projection: np.ndarray
+
+
+def rectified_camera_from_info(info: Any, topic: str = "") -> RectifiedView:
+    """Frame, size, rectification ``R`` (3×3) and projection ``P`` (3×4) of a CameraInfo."""
+    where = f"CameraInfo on {topic}" if topic else "the left CameraInfo"
+    projection = _projection(info, where).reshape(3, 4)
+    raw = getattr(info, "r", None)
+    if raw is None:
+        raw = getattr(info, "R", None)
+    rectification = np.eye(3)
+    if raw is not None:
+        values = np.asarray(raw, dtype=np.float64).reshape(-1)
+        # An all-zero R is what an uncalibrated driver publishes: treat it as the identity.
+        if values.size == 9 and values.any():
+            rectification = values.reshape(3, 3)
+        elif values.size != 9:
+            raise CalibrationError(f"{where}: R must have 9 values, got {values.size}")
+    header = _field(info, ("header",), where)
+    return RectifiedView(
+        frame_id=str(getattr(header, "frame_id", "")),
+        width=_int(info, "width", where),
+        height=_int(info, "height", where),
+        rectification=rectification,
+        projection=projection,
+    )
+
+
 # -- encode ---------------------------------------------------------------------------------
 
 
@@ -575,3 +753,86 @@ def camera_info_to_msg(
             "roi": _roi(typestore),
         },
     )
+
+
+def cloud_to_msg(
+    typestore: Typestore,
+    points: np.ndarray,
+    stamp_ns: int,
+    frame_id: str,
+    intensity: np.ndarray | None = None,
+) -> Any:
+    """An unorganised little-endian ``sensor_msgs/msg/PointCloud2`` of float32 x, y, z.
+
+    With ``intensity``, a fourth float32 field ``intensity`` (as Velodyne drivers publish:
+    ``point_step`` 16). Non-finite points are kept (``is_dense`` is then false).
+    """
+    xyz = np.asarray(points, dtype=np.float32)
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise ConfigurationError(f"a point cloud must be an N×3 array, got shape {xyz.shape}")
+    names = ["x", "y", "z"] + ([] if intensity is None else ["intensity"])
+    record = np.zeros(
+        xyz.shape[0], dtype=np.dtype({"names": names, "formats": ["<f4"] * len(names)})
+    )
+    for column, name in enumerate(("x", "y", "z")):
+        record[name] = xyz[:, column]
+    if intensity is not None:
+        record["intensity"] = np.asarray(intensity, dtype=np.float32).reshape(-1)
+    fields = [
+        _build(
+            typestore,
+            "sensor_msgs/msg/PointField",
+            {"name": name, "offset": 4 * index, "datatype": 7, "count": 1},
+        )
+        for index, name in enumerate(names)
+    ]
+    point_step = 4 * len(names)
+    return _build(
+        typestore,
+        "sensor_msgs/msg/PointCloud2",
+        {
+            "header": _header(typestore, stamp_ns, frame_id),
+            "height": 1,
+            "width": xyz.shape[0],
+            "fields": fields,
+            "is_bigendian": False,
+            "point_step": point_step,
+            "row_step": point_step * xyz.shape[0],
+            "data": record.view(np.uint8).reshape(-1).copy(),
+            "is_dense": bool(np.isfinite(xyz).all()),
+        },
+    )
+
+
+def tf_static_to_msg(typestore: Typestore, transforms: list[StaticTransform], stamp_ns: int) -> Any:
+    """A ``tf2_msgs/msg/TFMessage`` of static transforms (each: parent → child pose)."""
+    stamped = []
+    for transform in transforms:
+        translation, quaternion = pose_from_matrix(transform.matrix)
+        x, y, z = (float(v) for v in translation)
+        qx, qy, qz, qw = (float(v) for v in quaternion)
+        stamped.append(
+            _build(
+                typestore,
+                "geometry_msgs/msg/TransformStamped",
+                {
+                    "header": _header(typestore, stamp_ns, transform.parent),
+                    "child_frame_id": transform.child,
+                    "transform": _build(
+                        typestore,
+                        "geometry_msgs/msg/Transform",
+                        {
+                            "translation": _build(
+                                typestore, "geometry_msgs/msg/Vector3", {"x": x, "y": y, "z": z}
+                            ),
+                            "rotation": _build(
+                                typestore,
+                                "geometry_msgs/msg/Quaternion",
+                                {"x": qx, "y": qy, "z": qz, "w": qw},
+                            ),
+                        },
+                    ),
+                },
+            )
+        )
+    return _build(typestore, "tf2_msgs/msg/TFMessage", {"transforms": stamped})

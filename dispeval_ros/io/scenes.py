@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from dispeval_ros.core.camera import Camera
@@ -32,6 +33,7 @@ LAYOUTS = (
     "sceneflow",
     "tartanair",
     "motorcycle-npz",
+    "kitti-lidar",
 )
 
 #: The Motorcycle npz of scikit-image ships no calibration; its documentation gives these
@@ -65,6 +67,10 @@ class Scene:
     left: Path | None
     right: Path | None
     source: Path
+    lidar: Path | None = None
+    """LiDAR scenes: the raw scan the GT was projected from."""
+    lidar_calib: Path | None = None
+    """LiDAR scenes: the calibration (a file or a raw-calibration folder)."""
 
 
 # ----------------------------------------------------------------------------------- helpers
@@ -337,6 +343,103 @@ def _tartanair_frame(folder: Path, frame: str, camera: Camera) -> Scene:
     )
 
 
+def _image_size(file: Path) -> tuple[int, int]:
+    """(rows, columns) of an image file (a LiDAR scene's GT takes the left image's size)."""
+    image = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise InputError(f"{file}: cannot read the left image (expected a PNG or other image)")
+    return int(image.shape[0]), int(image.shape[1])
+
+
+def _lidar_frame(
+    folder: Path, name: str, scan: Path, left: Path, right: Path | None, calib: Path
+) -> Scene:
+    """A frame whose GT is a LiDAR scan projected into the left image (default filter)."""
+    # Imported here: the LiDAR readers need the projection kernel, other layouts do not.
+    from dispeval_ros.core.projection import project_cloud
+    from dispeval_ros.io.lidar import read_lidar_calib, read_velodyne_bin
+
+    calibration = read_lidar_calib(calib)
+    camera = calibration.camera
+    projected = project_cloud(
+        read_velodyne_bin(scan), calibration.matrix, _image_size(left), camera
+    )
+    return Scene(
+        name=name,
+        layout="kitti-lidar",
+        gt=projected.disparity,
+        gt_right=None,
+        masks={},
+        camera=camera,
+        left=left,
+        right=right,
+        source=folder,
+        lidar=scan,
+        lidar_calib=calib,
+    )
+
+
+def _lidar_calib_location(folder: Path) -> Path | None:
+    """KITTI LiDAR calibration for ``folder``, looked for in order.
+
+    An object-format ``calib*.txt`` with ``Tr_velo_to_cam`` in it, else the folder holding the
+    raw ``calib_velo_to_cam.txt`` + ``calib_cam_to_cam.txt``: the folder, its parent (KITTI raw's
+    day folder) or a sibling folder.
+    """
+    from dispeval_ros.io.lidar import RAW_VELO_TO_CAM
+
+    for entry in sorted(folder.glob("calib*.txt")):
+        try:
+            if "Tr_velo_to_cam" in entry.read_text(encoding="utf-8", errors="replace"):
+                return entry
+        except OSError:
+            continue
+    candidates = [folder, folder.parent]
+    candidates += sorted(p for p in folder.parent.iterdir() if p.is_dir() and p != folder)
+    return next((c for c in candidates if (c / RAW_VELO_TO_CAM).is_file()), None)
+
+
+def _lidar_frames(folder: Path) -> list[Callable[[], Scene]]:
+    """Frames of a KITTI LiDAR folder (none when it has no scan).
+
+    ``lidar.bin`` + ``left.png`` (one frame), or ``velodyne_points/NNNNNN.bin`` +
+    ``image_02/NNNNNN.png`` (one frame per scan).
+    """
+    single = _existing(folder, "lidar.bin")
+    scans = sorted((folder / "velodyne_points").glob("*.bin")) if single is None else [single]
+    if not scans:
+        return []
+    calib = _lidar_calib_location(folder)
+    if calib is None:
+        raise CalibrationError(
+            f"{folder}: LiDAR scans found but no calibration: expected a calib*.txt with "
+            f"Tr_velo_to_cam, or calib_velo_to_cam.txt + calib_cam_to_cam.txt in the folder, "
+            f"its parent or a sibling folder"
+        )
+    loaders: list[Callable[[], Scene]] = []
+    for scan in scans:
+        if single is not None:
+            left, right, name = (
+                _existing(folder, "left.png"),
+                _existing(folder, "right.png"),
+                folder.name,
+            )
+        else:
+            left = folder / "image_02" / f"{scan.stem}.png"
+            right_file = folder / "image_03" / f"{scan.stem}.png"
+            right, name = (
+                (right_file if right_file.is_file() else None),
+                f"{folder.name}_{scan.stem}",
+            )
+        if left is None or not left.is_file():
+            raise LayoutError(
+                f"{scan}: a LiDAR scene needs the left image ({left or folder / 'left.png'}) "
+                "for its size; not found"
+            )
+        loaders.append(partial(_lidar_frame, folder, name, scan, left, right, calib))
+    return loaders
+
+
 # ---------------------------------------------------------------------------------- public
 
 
@@ -353,7 +456,8 @@ _LOOKED_FOR = (
     "Disparity/NNNN.pfm (sceneflow), motorcycle_disp.npz (motorcycle-npz), "
     "disp0GT.pfm (middeval3), disp0.pfm (eth3d), groundtruth.png + info.txt "
     "(middlebury2001), *_left_disp.npy (tartanair), gt_disparity.png|disp_gt.png|"
-    "disp_occ*.png (kitti)"
+    "disp_occ*.png (kitti), lidar.bin or velodyne_points/*.bin + KITTI calibration "
+    "(kitti-lidar)"
 )
 
 
@@ -383,6 +487,9 @@ def _frames(folder: Path) -> list[Callable[[], Scene]]:
     gt_file = _kitti_gt(folder)
     if gt_file is not None:
         return [partial(_load_kitti, folder, gt_file)]
+    lidar = _lidar_frames(folder)
+    if lidar:
+        return lidar
     raise LayoutError(
         f"{folder}: not a recognised scene folder: looked for {_LOOKED_FOR}; "
         f"found {_files_preview(folder)}"

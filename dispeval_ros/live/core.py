@@ -8,29 +8,44 @@ driven by ``dispeval bag``, the rclpy evaluator node and the Cyclone DDS front e
 
 from __future__ import annotations
 
+import contextlib
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from dispeval_ros.core import Camera, Evaluator, Partition, Scores
-from dispeval_ros.core.measures import SEQUENCE_MEASURES
-from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
+from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
+from dispeval_ros.core.projection import (
+    CloudFilter,
+    CloudProjection,
+    project_cloud,
+    rectified_projection,
+)
+from dispeval_ros.core.transforms import TransformTree, rigid_matrix
+from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.messages import (
     camera_from_infos,
+    cloud_from_msg,
     disparity_from_msg,
     gt_disparity,
     image_from_msg,
+    rectified_camera_from_info,
     stamp_ns,
+    static_transforms_from_msg,
 )
 from dispeval_ros.live.join import FrameSet, JoinCounts, StampJoiner
 
 DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
 IMAGE_TYPE = "sensor_msgs/msg/Image"
 CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
-GT_KINDS = ("disparity", "depth")
+POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+TF_STATIC_TOPIC = "/tf_static"
+GT_KINDS = ("disparity", "depth", "pointcloud")
 
 
 @dataclass(frozen=True)
@@ -50,6 +65,11 @@ class CoreConfig:
     mu: float = 0.01
     tolerance_ns: int = 10_000_000
     lateness_ns: int = 1_000_000_000
+    extrinsic: tuple[float, ...] | None = None
+    """Point-cloud GT: the cloud → left camera transform (16 numbers, row-major); None reads
+    the chain from /tf_static."""
+    cloud_filter: str = str(CloudFilter())
+    """Point-cloud GT: the parallax filter, ``"W,G"`` or ``"0"`` (see :class:`CloudFilter`)."""
 
     def __post_init__(self) -> None:
         if not self.methods:
@@ -69,15 +89,36 @@ class CoreConfig:
             raise ConfigurationError(
                 "give both the left and the right CameraInfo topics, or neither"
             )
+        if self.gt_kind == "pointcloud":
+            if self.left_info_topic is None:
+                raise ConfigurationError(
+                    "ground truth from a point cloud needs the left and right CameraInfo topics "
+                    "(the left camera's R and P, and the baseline)"
+                )
+            CloudFilter.parse(self.cloud_filter)
+            if self.extrinsic is not None:
+                rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
+
+    @property
+    def pointcloud(self) -> bool:
+        """Whether the ground truth is a LiDAR point cloud."""
+        return self.gt_kind == "pointcloud"
+
+    @property
+    def tf_topic(self) -> str | None:
+        """The static transforms topic read (point-cloud GT without an explicit extrinsic)."""
+        return TF_STATIC_TOPIC if self.pointcloud and self.extrinsic is None else None
 
     @property
     def topics(self) -> dict[str, str]:
         """Every subscribed topic → the message type expected on it."""
-        expected = {self.gt_topic: IMAGE_TYPE}
+        expected = {self.gt_topic: POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE}
         expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
         if self.left_info_topic and self.right_info_topic:
             expected[self.left_info_topic] = CAMERA_INFO_TYPE
             expected[self.right_info_topic] = CAMERA_INFO_TYPE
+        if self.tf_topic:
+            expected[self.tf_topic] = TF_TYPE
         return expected
 
     def as_record(self) -> dict[str, object]:
@@ -95,12 +136,34 @@ class CoreConfig:
             "mu": self.mu,
             "tolerance_ns": self.tolerance_ns,
             "lateness_ns": self.lateness_ns,
+            **(
+                {"extrinsic": list(self.extrinsic or []), "cloud_filter": self.cloud_filter}
+                if self.pointcloud
+                else {}
+            ),
         }
 
     def evaluator(self) -> Evaluator:
-        """The core evaluator these options describe (measures default to the summable ones)."""
-        measures = self.measures if self.measures is not None else SEQUENCE_MEASURES
-        return Evaluator(self.criteria, measures, self.missing, self.delta, self.mu)
+        """The core evaluator these options describe (measures default to the summable ones).
+
+        LiDAR GT gets metric depth ranges (0-10, 10-30, 30+ m), the sparse boundary rule and
+        the depth-domain measures by default.
+        """
+        if not self.pointcloud:
+            measures = self.measures if self.measures is not None else SEQUENCE_MEASURES
+            return Evaluator(self.criteria, measures, self.missing, self.delta, self.mu)
+        measures = (
+            self.measures if self.measures is not None else (*SEQUENCE_MEASURES, *DEPTH_MEASURES)
+        )
+        return Evaluator(
+            self.criteria,
+            measures,
+            self.missing,
+            self.delta,
+            self.mu,
+            boundary_mode="sparse",
+            depth_ranges=LIDAR_DEPTH_RANGES,
+        )
 
 
 @dataclass
@@ -142,6 +205,11 @@ class EvaluationCore:
         self._method_of_topic = {topic: name for name, topic in config.methods.items()}
         self._infos: dict[str, Any] = {}
         self._camera: Camera | None = None
+        self.transforms = TransformTree()
+        self.extrinsic_lookup: Callable[[str, str], np.ndarray] | None = None
+        """Point-cloud GT: ``(camera frame, cloud frame) → 4×4`` used instead of /tf_static
+        (the rclpy node sets it to a tf2_ros buffer lookup)."""
+        self._cloud_filter = CloudFilter.parse(config.cloud_filter)
         self.failed = dict.fromkeys(config.methods, 0)
         self._failed_lock = threading.Lock()
 
@@ -157,6 +225,12 @@ class EvaluationCore:
         if topic in (self.config.left_info_topic, self.config.right_info_topic):
             self._infos[topic] = msg
             self._camera = None  # recomputed on the next frame from the latest infos
+            return []
+        if topic == self.config.tf_topic:
+            # A malformed message is skipped: the frames it would connect are then reported
+            # as not connected, with the frames that exist, when a cloud needs them.
+            with contextlib.suppress(DispevalError):
+                self.transforms.add(static_transforms_from_msg(msg, topic))
             return []
         return []
 
@@ -184,10 +258,13 @@ class EvaluationCore:
                 self._topic(next(iter(frame_set.estimates))),
             )
             camera = self.camera(first.camera)
-            image = image_from_msg(frame_set.gt, self.config.gt_topic)
-            gt = gt_disparity(
-                image, self.config.gt_kind, self.config.gt_scale, camera, self.config.gt_topic
-            )
+            if self.config.pointcloud:
+                gt = self.cloud_disparity(frame_set.gt, camera, first.disparity.shape).disparity
+            else:
+                image = image_from_msg(frame_set.gt, self.config.gt_topic)
+                gt = gt_disparity(
+                    image, self.config.gt_kind, self.config.gt_scale, camera, self.config.gt_topic
+                )
             reference = self.evaluator.reference(gt, camera)
         except DispevalError as error:
             for method in frame_set.estimates:
@@ -211,6 +288,53 @@ class EvaluationCore:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
         return result
+
+    def extrinsic(self, camera_frame: str, cloud_frame: str) -> np.ndarray:
+        """The cloud → camera transform: explicit, the lookup hook, or /tf_static's chain."""
+        if self.config.extrinsic is not None:
+            return rigid_matrix(self.config.extrinsic, "the LiDAR extrinsic")
+        if self.extrinsic_lookup is not None:
+            return np.asarray(self.extrinsic_lookup(camera_frame, cloud_frame), dtype=np.float64)
+        return self.transforms.lookup(camera_frame, cloud_frame)
+
+    def cloud_disparity(
+        self, msg: Any, camera: Camera | None, shape: tuple[int, ...]
+    ) -> CloudProjection:
+        """Project a PointCloud2 into the left camera (the sparse GT of one frame).
+
+        Every problem is one line naming the topic: no x/y/z, no camera, no chain of static
+        transforms, a CameraInfo of another size than the disparity, or no point in view.
+        """
+        topic = self.config.gt_topic
+        cloud = cloud_from_msg(msg, topic)
+        left = self.config.left_info_topic
+        if camera is None or left is None or left not in self._infos:
+            raise CalibrationError(
+                f"no camera yet for the cloud on {topic}: waiting for the CameraInfo topics"
+            )
+        view = rectified_camera_from_info(self._infos[left], left)
+        size = (view.height, view.width) if view.height > 0 and view.width > 0 else shape[:2]
+        if tuple(size) != tuple(shape[:2]):
+            raise InputError(
+                f"CameraInfo on {left} is {view.width}×{view.height} but the disparity is "
+                f"{shape[1]}×{shape[0]}: the cloud cannot be projected into that image"
+            )
+        extrinsic = self.extrinsic(view.frame_id, cloud.frame_id)
+        matrix = rectified_projection(extrinsic, view.rectification, view.projection)
+        projected = project_cloud(
+            cloud.points, matrix, (int(size[0]), int(size[1])), camera, self._cloud_filter
+        )
+        if projected.points and not projected.in_front:
+            raise CalibrationError(
+                f"the cloud on {topic}: all {projected.points} points are behind the camera "
+                f"'{view.frame_id}' (Z ≤ 0) with this extrinsic; is it inverted (camera → LiDAR)?"
+            )
+        if not projected.kept:
+            raise InputError(
+                f"the cloud on {topic}: none of its {projected.points} points lands in the "
+                f"{size[1]}×{size[0]} image ({projected.in_front} in front of the camera)"
+            )
+        return projected
 
     def _count_failed(self, method: str) -> None:
         with self._failed_lock:  # score() may run in several threads

@@ -63,6 +63,11 @@ def sequence_names(bags: Sequence[Path]) -> list[str]:
 def check_topics(source: BagSource, config: CoreConfig) -> None:
     """Every configured topic exists with the expected type (else one error listing the bag's topics)."""
     for topic, msgtype in config.topics.items():
+        if topic == config.tf_topic and topic not in source.topics:
+            raise InputError(
+                f"{source.path} has no {topic} to take the LiDAR → camera transform from; "
+                "give it with --extrinsic FILE (a 4×4 matrix or 'x y z qx qy qz qw')"
+            )
         require_topic(source, topic, [msgtype])
 
 
@@ -84,6 +89,18 @@ def plan_units(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> 
     last = units[-1]
     units[-1] = Unit(path, sequence, last.name, last.start_ns, 2**62, margin)
     return units
+
+
+def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
+    """Give ``core`` every /tf_static message of the bag (point-cloud GT without --extrinsic).
+
+    Static transforms are latched: recorded once, near the start, so a slice of the bag read
+    on its own would miss them.
+    """
+    topic = core.config.tf_topic
+    if topic:
+        for _, _, msg in source.messages([topic]):
+            core.push(topic, msg)
 
 
 def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
@@ -114,6 +131,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     read_to = None if unit.stop_ns > 2**61 else unit.stop_ns + unit.margin_ns
     try:
         with BagSource(unit.path) as source:
+            push_static_transforms(source, core)
             for topic, _, msg in source.messages(list(config.topics), read_from, read_to):
                 result.messages += 1
                 handle(core.push(topic, msg))

@@ -19,17 +19,33 @@ import cv2
 import numpy as np
 
 from dispeval_ros.core import Camera
+from dispeval_ros.core.transforms import StaticTransform, invert_rigid, matrix_from_pose
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagWriter
-from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.messages import (
+    camera_info_to_msg,
+    cloud_to_msg,
+    disparity_to_msg,
+    image_to_msg,
+    tf_static_to_msg,
+)
 from dispeval_ros.io.scenes import list_frames
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
+from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, simulate_scan
+from dispeval_ros.testbed.scene import driving_setup, driving_world_at
 
 LEFT_IMAGE = "/stereo/left/image_rect"
 RIGHT_IMAGE = "/stereo/right/image_rect"
 LEFT_INFO = "/stereo/left/camera_info"
 RIGHT_INFO = "/stereo/right/camera_info"
 GT_TOPIC = "/stereo/ground_truth/disparity"
+CLOUD_TOPIC = "/lidar/points"
+TF_STATIC_TOPIC = "/tf_static"
+CAMERA_FRAME = "stereo_left"
+LIDAR_FRAME = "velodyne"
+BASE_FRAME = "base_link"
+#: Where the LiDAR sits on the vehicle (base_link: x forward, y left, z up, on the ground).
+LIDAR_MOUNT = matrix_from_pose([0.0, 0.0, 2.05], [0.0, 0.0, 0.0, 1.0])
 START_NS = 1_700_000_000_000_000_000
 """Stamp of the first frame (a fixed date, so bags are byte-for-byte reproducible)."""
 
@@ -48,6 +64,21 @@ class BagFrame:
     gt: np.ndarray
     camera: Camera | None
     stamp: float
+    cloud: np.ndarray | None = None
+    """A LiDAR scan (N×3, the LiDAR's frame) taken at ``stamp``, or None."""
+    cloud_to_camera: np.ndarray | None = None
+    """The LiDAR → left optical frame transform (4×4) of ``cloud``."""
+    principal: tuple[float, float] | None = None
+    """The left camera's ``(cx, cy)`` in px (default: the image centre)."""
+
+
+def static_transforms(cloud_to_camera: np.ndarray) -> list[StaticTransform]:
+    """/tf_static of a vehicle: base_link → LiDAR and base_link → left optical frame."""
+    camera_pose = LIDAR_MOUNT @ invert_rigid(cloud_to_camera)
+    return [
+        StaticTransform(BASE_FRAME, LIDAR_FRAME, LIDAR_MOUNT),
+        StaticTransform(BASE_FRAME, CAMERA_FRAME, camera_pose),
+    ]
 
 
 def dataset_frames(folder: Path) -> Iterator[BagFrame]:
@@ -67,7 +98,23 @@ def dataset_frames(folder: Path) -> Iterator[BagFrame]:
             raise InputError(
                 f"{folder}: images are {left.shape} and {right.shape} but the GT is {scene.gt.shape}"
             )
-        yield BagFrame(left, right, scene.gt.astype(np.float32), scene.camera, float(index))
+        cloud = extrinsic = principal = None
+        if scene.lidar is not None and scene.lidar_calib is not None:
+            from dispeval_ros.io.lidar import read_lidar_calib, read_velodyne_bin
+
+            cloud = read_velodyne_bin(scene.lidar)
+            extrinsic, cx, cy = read_lidar_calib(scene.lidar_calib).ros_view()
+            principal = (cx, cy)
+        yield BagFrame(
+            left,
+            right,
+            scene.gt.astype(np.float32),
+            scene.camera,
+            float(index),
+            cloud,
+            extrinsic,
+            principal,
+        )
 
 
 def methods_for(width: int, max_disparity: float) -> list[StereoMethod]:
@@ -92,6 +139,7 @@ def write_bag(
 ) -> dict[str, object]:
     """Write every frame (images, CameraInfo, GT, each method's disparity); returns a summary."""
     written = 0
+    clouds = 0
     chosen: list[StereoMethod] | None = list(methods) if methods else None
     with BagWriter(path, storage, compress=compress) as bag:
         typestore = bag.typestore
@@ -115,6 +163,15 @@ def write_bag(
                 registered = True
             stamp = START_NS + round(frame.stamp * 1e9)
             camera = frame.camera
+            if frame.cloud is not None and frame.cloud_to_camera is not None:
+                if clouds == 0:  # latched once, as a robot's static_transform_publisher does
+                    bag.add_topic(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage")
+                    bag.add_topic(CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2")
+                    edges = static_transforms(frame.cloud_to_camera)
+                    bag.write(TF_STATIC_TOPIC, stamp, tf_static_to_msg(typestore, edges, stamp))
+                cloud = cloud_to_msg(typestore, frame.cloud, stamp, LIDAR_FRAME)
+                bag.write(CLOUD_TOPIC, stamp + 2_000_000, cloud)
+                clouds += 1
             bag.write(
                 LEFT_IMAGE,
                 stamp,
@@ -126,9 +183,10 @@ def write_bag(
                 image_to_msg(typestore, frame.right, stamp, "stereo_right", "mono8"),
             )
             if camera is not None:
+                cx, cy = frame.principal or (None, None)
                 for topic, right in ((LEFT_INFO, False), (RIGHT_INFO, True)):
                     info = camera_info_to_msg(
-                        typestore, camera, width, height, stamp, "stereo_left", right
+                        typestore, camera, width, height, stamp, "stereo_left", right, cx, cy
                     )
                     bag.write(topic, stamp, info)
             bag.write(
@@ -163,15 +221,30 @@ def write_bag(
         "methods": {m.name: disparity_topic(m.name) for m in chosen or []},
         "gt": GT_TOPIC,
         "camera_info": [LEFT_INFO, RIGHT_INFO],
+        **({"gt_cloud": CLOUD_TOPIC, "tf_static": TF_STATIC_TOPIC} if clouds else {}),
     }
 
 
 def synthetic_frames(
-    n_frames: int, width: int, height: int, fps: float, seed: int
+    n_frames: int,
+    width: int,
+    height: int,
+    fps: float,
+    seed: int,
+    lidar: LidarModel | None = None,
 ) -> Iterator[BagFrame]:
-    """The synthetic driving sequence of the test-bed."""
-    for frame in make_driving_sequence(n_frames, width, height, fps, seed):
-        yield from_stereo_frame(frame)
+    """The synthetic driving sequence of the test-bed, with a LiDAR's scans if ``lidar``."""
+    world, rig = driving_setup(width, height, fps, seed)
+    for index, frame in enumerate(make_driving_sequence(n_frames, width, height, fps, seed)):
+        bag_frame = dataclasses.replace(from_stereo_frame(frame), principal=(rig.cx, rig.cy))
+        if lidar is not None:
+            world_t, rig_t = driving_world_at(world, rig, index / fps)
+            bag_frame = dataclasses.replace(
+                bag_frame,
+                cloud=simulate_scan(world_t, rig_t, lidar),
+                cloud_to_camera=lidar_to_camera(rig_t, lidar),
+            )
+        yield bag_frame
 
 
 def from_stereo_frame(frame: StereoFrame) -> BagFrame:

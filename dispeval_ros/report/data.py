@@ -80,6 +80,14 @@ _RATIOS = {
     "bmpre_mean": (k.FIELD_BMPRE, k.FIELD_EVAL, 1.0),
     "d1": (k.FIELD_D1, k.FIELD_EVAL, 100.0),
     "density": (k.FIELD_VALID, k.FIELD_N, 1.0),
+    "mae_z": (k.FIELD_SUM_EZ, k.FIELD_EVAL, 1.0),
+    "absrel_z": (k.FIELD_SUM_RELZ, k.FIELD_EVAL, 1.0),
+}
+# name: (numerator field, scale inside the root) of the root-mean measures
+_ROOTS = {
+    "rmse": (k.FIELD_SUM_E2, 1.0),
+    "rmse_z": (k.FIELD_SUM_EZ2, 1.0),
+    "irmse": (k.FIELD_SUM_IZ2, 1e6),
 }
 _TOTALS = {"bmp_count": k.FIELD_BAD, "sze": k.FIELD_SZE, "bmpre": k.FIELD_BMPRE}
 
@@ -100,8 +108,9 @@ def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
     if name in _RATIOS:
         num, den, scale = _RATIOS[name]
         recipe.update(kind="ratio", num=num, den=den, scale=scale)
-    elif name == "rmse":
-        recipe.update(kind="sqrt_ratio", num=k.FIELD_SUM_E2, den=k.FIELD_EVAL, scale=1.0)
+    elif name in _ROOTS:
+        num, scale = _ROOTS[name]
+        recipe.update(kind="sqrt_ratio", num=num, den=k.FIELD_EVAL, scale=scale)
     elif name in _TOTALS:
         recipe.update(kind="total", num=_TOTALS[name], den=-1, scale=1.0)
     elif bad_threshold(name) is not None:
@@ -507,6 +516,10 @@ def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
     for key in ("gt_kind", "gt_scale", "missing", "delta", "mu", "tolerance_ns", "lateness_ns"):
         if config.get(key) is not None:
             options[key] = config[key]
+    if config.get("cloud_filter") is not None:  # point-cloud GT
+        options["cloud_filter"] = str(config["cloud_filter"])
+    if config.get("extrinsic"):
+        options["extrinsic"] = tuple(float(v) for v in config["extrinsic"])
     if config.get("criteria"):
         options["criteria"] = tuple(config["criteria"])
     return CoreConfig(
@@ -585,6 +598,7 @@ def error_thumbnails(
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.live.core import EvaluationCore
     from dispeval_ros.live.images import colour_error
+    from dispeval_ros.offline.bag_eval import push_static_transforms
 
     if count <= 0 or not bags:
         return None
@@ -602,6 +616,7 @@ def error_thumbnails(
         with BagSource(matched[sequence]) as source:
             for stamp in wanted:
                 core = EvaluationCore(config, error_images=True)
+                push_static_transforms(source, core)
                 found = None
                 messages = source.messages(list(config.topics), stamp - margin, stamp + margin + 1)
                 for topic, _, msg in messages:

@@ -42,7 +42,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import Float64MultiArray, String
 from stereo_msgs.msg import DisparityImage
 
@@ -53,6 +53,7 @@ from dispeval_ros.live.core import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
     IMAGE_TYPE,
+    POINT_CLOUD_TYPE,
     FrameResult,
     MethodCounts,
 )
@@ -67,7 +68,7 @@ from dispeval_ros.live.vectors import (
     scores_status,
     vector_labels,
 )
-from dispeval_ros.ros import convert
+from dispeval_ros.ros import convert, static_tf
 from dispeval_ros.ros.params import (
     EVALUATOR_PARAMETERS,
     declare_parameters,
@@ -102,7 +103,12 @@ LOG_PERIOD = 5.0
 ACK_TIMEOUT = 2.0
 """Seconds to wait at shutdown for subscribers to acknowledge the last scores."""
 
-_MESSAGE_CLASSES = {IMAGE_TYPE: Image, DISPARITY_TYPE: DisparityImage, CAMERA_INFO_TYPE: CameraInfo}
+_MESSAGE_CLASSES = {
+    IMAGE_TYPE: Image,
+    DISPARITY_TYPE: DisparityImage,
+    CAMERA_INFO_TYPE: CameraInfo,
+    POINT_CLOUD_TYPE: PointCloud2,
+}
 
 
 def method_topic(method: str, leaf: str) -> str:
@@ -171,7 +177,10 @@ class EvaluatorNode(Node):
             )
             self._replay_thread.start()
         else:
+            self._tf_listener = self._static_transforms()
             for topic, type_name in self.config.topics.items():
+                if topic == self.config.tf_topic:
+                    continue  # subscribed by _static_transforms
                 self.create_subscription(
                     _MESSAGE_CLASSES[type_name],
                     topic,
@@ -186,6 +195,19 @@ class EvaluatorNode(Node):
         )
 
     # -- input ------------------------------------------------------------------------------
+
+    def _static_transforms(self) -> Any:
+        """Point-cloud GT without lidar_extrinsic: tf2_ros's buffer, else raw /tf_static."""
+        topic = self.config.tf_topic
+        if topic is None:
+            return None
+        found = static_tf.tf2_lookup(self)
+        if found is not None:
+            self._live.core.extrinsic_lookup, listener = found
+            return listener
+        return self.create_subscription(
+            static_tf.tf_message_class(), topic, self._subscriber(topic), static_tf.static_tf_qos()
+        )
 
     def _subscriber(self, topic: str) -> Callable[[Any], None]:
         def callback(msg: Any) -> None:
@@ -252,6 +274,9 @@ class EvaluatorNode(Node):
         as_fast_as_possible = self.options.bag_rate is None
 
         def push(topic: str, msg: Any) -> None:
+            if topic == self.config.tf_topic:  # static transforms: no header, no stamp shift
+                self._push(topic, msg)
+                return
             stamp = stamp_ns(msg.header)
             if not span:
                 span.extend((stamp, stamp))

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.live.core import GT_KINDS, CoreConfig
 from dispeval_ros.live.summarizer import SummarizerConfig
@@ -32,6 +31,8 @@ from dispeval_ros.live.vectors import AlarmThresholds
 from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
+DEFAULT_MEASURES_KEYWORD = "default"
+"""``measures: [default]``: the core's default measures for the kind of ground truth."""
 
 ParamValue = bool | int | float | str | tuple[str, ...]
 
@@ -81,7 +82,32 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "Ground-truth sensor_msgs/msg/Image topic (disparity in px or depth, see gt_kind)",
         "required; encodings 32FC1, 64FC1, 16UC1, mono16",
     ),
-    Param("gt_kind", STRING, "disparity", "What the ground-truth image holds", "disparity | depth"),
+    Param(
+        "gt_kind",
+        STRING,
+        "disparity",
+        "What the ground truth is: a disparity or depth Image, or a LiDAR's "
+        "sensor_msgs/msg/PointCloud2 projected into the left camera (pointcloud: needs both "
+        "CameraInfo topics; see lidar_extrinsic and cloud_filter)",
+        "disparity | depth | pointcloud",
+    ),
+    Param(
+        "lidar_extrinsic",
+        STRING,
+        "",
+        "gt_kind pointcloud: the cloud frame -> left camera optical frame transform, as 16 "
+        "numbers (4x4 row-major), 7 ('x y z qx qy qz qw') or a file holding either. Empty: "
+        "the chain from /tf_static (through tf2_ros where it is installed)",
+        "empty, 16 or 7 numbers, or a file",
+    ),
+    Param(
+        "cloud_filter",
+        STRING,
+        "7,0.1",
+        "gt_kind pointcloud: LiDAR-camera parallax filter 'W,G': a point is dropped when a point "
+        "within its WxW pixel window is nearer by more than the relative gap G; '0' disables",
+        "'W,G' (W integer px, G >= 0) or '0'",
+    ),
     Param(
         "gt_scale",
         DOUBLE,
@@ -117,11 +143,12 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "measures",
         STRING_ARRAY,
-        SEQUENCE_MEASURES,
-        "Error measures. The default is the summable default set (every default measure except "
-        "the quantiles aNN, which cannot be added over frames)",
-        "bmp, bmp_count, bad_X, mae, mse, rmse, mre, sze, sze_mean, bmpre, bmpre_mean, d1, aNN, "
-        "density",
+        (DEFAULT_MEASURES_KEYWORD,),
+        "Error measures. 'default' = the summable default set (every default measure except the "
+        "quantiles aNN, which cannot be added over frames), plus the depth-domain measures for "
+        "pointcloud ground truth",
+        "default, or a list of: bmp, bmp_count, bad_X, mae, mse, rmse, mre, sze, sze_mean, bmpre, "
+        "bmpre_mean, d1, aNN, density, mae_z, rmse_z, absrel_z, irmse",
     ),
     Param(
         "missing",
@@ -334,6 +361,26 @@ def parse_methods(items: Sequence[str]) -> dict[str, str]:
     return methods
 
 
+def lidar_extrinsic(text: str) -> tuple[float, ...] | None:
+    """The ``lidar_extrinsic`` parameter: None (use /tf_static) or the 4×4 matrix's 16 numbers."""
+    from dispeval_ros.core.transforms import rigid_matrix
+    from dispeval_ros.io.lidar import read_extrinsic
+
+    text = text.strip()
+    if not text:
+        return None
+    try:
+        values = [float(token) for token in re.split(r"[\s,;\[\]]+", text) if token]
+    except ValueError:
+        matrix = read_extrinsic(Path(text).expanduser())  # not numbers: a file
+    else:
+        try:
+            matrix = rigid_matrix(values, "parameter lidar_extrinsic")
+        except DispevalError as error:
+            raise ConfigurationError(str(error)) from None
+    return tuple(float(v) for v in matrix.reshape(-1))
+
+
 def core_config(values: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from the evaluator's parameter values."""
     gt_topic = str(values["gt_topic"]).strip()
@@ -351,6 +398,8 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
     if not criteria:
         raise ConfigurationError("parameter criteria is empty: name at least one criterion")
     measures = tuple(values["measures"])
+    if measures == (DEFAULT_MEASURES_KEYWORD,):
+        measures = ()  # the core's default for the ground-truth kind
     left = str(values["left_camera_info"]).strip()
     right = str(values["right_camera_info"]).strip()
     if bool(left) != bool(right):
@@ -362,6 +411,8 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         methods=parse_methods(values["methods"]),
         gt_topic=gt_topic,
         gt_kind=kind,
+        extrinsic=lidar_extrinsic(str(values.get("lidar_extrinsic", ""))),
+        cloud_filter=str(values.get("cloud_filter", "7,0.1")),
         gt_scale=scale if scale > 0 else None,
         left_info_topic=left or None,
         right_info_topic=right or None,

@@ -1,0 +1,109 @@
+"""A simulated spinning LiDAR in the synthetic world: exact ray casting, like the cameras.
+
+The LiDAR has ``beams`` lasers spread evenly over a vertical field ``±vertical_fov`` degrees,
+fires every ``azimuth_step`` degrees over a full turn, and sits ``offset`` metres from the left
+camera (right, up, forward in world axes): by default above and behind it, as on a car roof,
+so that it sees background the camera does not (parallax occlusions). Every ray is intersected
+exactly with the ground, the far wall and every box; rays that hit nothing or come back from
+beyond ``max_range`` give no point. The whole scan is taken at one instant (no motion
+distortion), so the only differences from the camera's exact GT are the LiDAR's viewpoint and
+sampling.
+
+Points are in the LiDAR's frame (REP 103: ``x`` forward, ``y`` left, ``z`` up);
+:func:`lidar_to_camera` gives the transform into the left camera's optical frame (``x`` right,
+``y`` down, ``z`` forward).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dispeval_ros.testbed.scene import StereoRig, Vec3, World
+
+# Columns: the LiDAR's axes (x forward, y left, z up) in world axes (x right, y up, z forward).
+_LIDAR_AXES = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+# Rows: the optical frame's axes (x right, y down, z forward) in world axes.
+_OPTICAL_AXES = np.diag([1.0, -1.0, 1.0])
+
+
+@dataclass(frozen=True)
+class LidarModel:
+    """Beams, fields of view, range, and the mounting offset from the left camera (metres)."""
+
+    beams: int = 32
+    vertical_fov: float = 15.0
+    azimuth_step: float = 0.2
+    max_range: float = 120.0
+    offset: Vec3 = (0.3, 0.4, -0.3)
+    horizontal_fov: float = 360.0
+    """Degrees of the turn published, centred forward (drivers can crop a scan to save bandwidth)."""
+
+    def directions(self) -> np.ndarray:
+        """Unit ray directions (N×3, world axes), beam by beam, each over the horizontal field."""
+        elevations = np.radians(np.linspace(-self.vertical_fov, self.vertical_fov, self.beams))
+        half = min(self.horizontal_fov, 360.0) / 2
+        azimuths = np.radians(np.arange(-half, half, self.azimuth_step))
+        elevation, azimuth = np.meshgrid(elevations, azimuths, indexing="ij")
+        cos_e = np.cos(elevation)
+        # azimuth 0 looks forward (+z), positive turns left (−x), as a LiDAR's yaw.
+        world = np.stack(
+            [-cos_e * np.sin(azimuth), np.sin(elevation), cos_e * np.cos(azimuth)], axis=-1
+        )
+        return world.reshape(-1, 3)
+
+    def origin(self, rig: StereoRig) -> Vec3:
+        """The LiDAR's position in the world for a rig pose."""
+        x, y, z = rig.position
+        dx, dy, dz = self.offset
+        return (x + dx, y + dy, z + dz)
+
+
+def _hit_distance(world: World, origin: Vec3, directions: np.ndarray) -> np.ndarray:
+    """Distance along each unit ray to the nearest surface (``inf``: nothing)."""
+    ox, oy, oz = origin
+    dx, dy, dz = directions[:, 0], directions[:, 1], directions[:, 2]
+    best = np.full(directions.shape[0], np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if oy > 0:
+            ground = -oy / dy
+            best = np.where((dy < 0) & (ground > 0), ground, best)
+        if world.far_wall_z is not None and world.far_wall_z > oz:
+            wall = (world.far_wall_z - oz) / dz
+            best = np.where((dz > 0) & (wall < best), wall, best)
+        for box in world.boxes:
+            t_near = np.full(directions.shape[0], -np.inf)
+            t_far = np.full(directions.shape[0], np.inf)
+            for axis, o, d in ((0, ox, dx), (1, oy, dy), (2, oz, dz)):
+                lo, hi = box.lo[axis], box.hi[axis]
+                t1 = (lo - o) / d
+                t2 = (hi - o) / d
+                parallel = d == 0
+                inside = lo <= o <= hi
+                near = np.where(parallel, -np.inf if inside else np.inf, np.minimum(t1, t2))
+                far = np.where(parallel, np.inf if inside else -np.inf, np.maximum(t1, t2))
+                t_near = np.maximum(t_near, near)
+                t_far = np.minimum(t_far, far)
+            hit = (t_near <= t_far) & (t_near > 0) & (t_near < best)
+            best = np.where(hit, t_near, best)
+    return best
+
+
+def simulate_scan(world: World, rig: StereoRig, model: LidarModel | None = None) -> np.ndarray:
+    """One LiDAR scan (N×3 float32, the LiDAR's frame) of ``world`` with the rig at its pose."""
+    chosen = model or LidarModel()
+    directions = chosen.directions()
+    distance = _hit_distance(world, chosen.origin(rig), directions)
+    keep = np.isfinite(distance) & (distance <= chosen.max_range)
+    world_points = directions[keep] * distance[keep, None]
+    return (world_points @ _LIDAR_AXES).astype(np.float32)
+
+
+def lidar_to_camera(rig: StereoRig, model: LidarModel | None = None) -> np.ndarray:
+    """The 4×4 transform from the LiDAR's frame to the left camera's optical frame."""
+    chosen = model or LidarModel()
+    transform = np.eye(4)
+    transform[:3, :3] = _OPTICAL_AXES @ _LIDAR_AXES
+    transform[:3, 3] = _OPTICAL_AXES @ np.asarray(chosen.offset, dtype=np.float64)
+    return transform
