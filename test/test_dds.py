@@ -569,14 +569,22 @@ def test_live_and_play_over_dds_match_dispeval_bag(
     text = live_log.read_text(errors="replace")
     # every frame received here equals dispeval bag's, exactly
     received: dict[int, set[str]] = {}
+    # LiDAR GT cannot be projected before the first CameraInfo pair: over best-effort DDS the
+    # very first samples may be lost while discovery completes, so the first frames may fail
+    # (each with one clear problem); the image GT falls back to the DisparityImage's f and t.
+    waiting = set(gt_stamps[:3]) if gt_mode == "cloud" else set()
+    startup: set[int] = set()
     for stamp, records in scores:
         assert stamp in gt_stamps
+        if stamp in waiting and any("no camera yet" in r.message for r in records):
+            startup.add(stamp)
+            continue
         for record in records:
             assert record.values, f"a problem was reported: {record.message}"
             rebuilt = scores_from_status(record.values)
             _assert_same_scores(rebuilt, reference[stamp, record.name], (stamp, record.name))
             received.setdefault(stamp, set()).add(record.name)
-    assert len(scores) == len(received), "a frame was published twice"
+    assert len(scores) == len(received) + len(startup), "a frame was published twice"
     assert len(received) >= len(gt_stamps) - 3, f"only {len(received)} of {len(gt_stamps)} frames"
 
     # the live process's database holds exactly the frames it published, the same scores
@@ -592,10 +600,10 @@ def test_live_and_play_over_dds_match_dispeval_bag(
         assert set(counts) == set(methods)
         for method, count in counts.items():
             assert count.matched == sum(method in names for names in received.values())
-            assert count.failed == 0
+            assert count.failed <= len(startup)
             assert count.matched + count.dropped <= len(gt_stamps)
             assert count.unmatched <= len(gt_stamps) - count.matched
-        assert store.problems() == []
+        assert {problem.stamp for problem in store.problems()} == startup
     summary = json.loads((out / "summary.json").read_text())
     assert summary["sequences"][0]["common_frames"] == sum(
         len(names) == len(methods) for names in received.values()

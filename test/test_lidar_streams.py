@@ -258,38 +258,20 @@ def test_config_record_and_defaults() -> None:
 
 def test_filtered_synthetic_lidar_agrees_with_the_exact_ray_cast() -> None:
     """< 0.5 % of the kept points disagree by > 1 px with the camera's exact view of them."""
-    from dispeval_ros.testbed.lidar import _hit_distance
+    from dispeval_ros.testbed.lidar import check_scan
 
     world, rig = driving_setup(620, 188, 10.0, 0)
-    kept = disagree = removed = 0
+    checks = {str(chosen): [] for chosen in (CloudFilter(0), CloudFilter())}
     for index in range(0, 30, 5):
         world_t, rig_t = driving_world_at(world, rig, index / 10.0)
-        scan = simulate_scan(world_t, rig_t).astype(np.float64)
-        k = np.array([[rig.f, 0, rig.cx, 0], [0, rig.f, rig.cy, 0], [0, 0, 1, 0]])
-        matrix = rectified_projection(lidar_to_camera(rig_t), np.eye(3), k)
-        projected = project_cloud(scan, matrix, (188, 620), rig.camera, CloudFilter())
-        removed += projected.removed
-        # The winning point of every kept pixel, and the camera's exact ray through it.
-        uvw = np.column_stack([scan, np.ones(len(scan))]) @ matrix.T
-        front = uvw[:, 2] > 0
-        u = uvw[front, 0] / uvw[front, 2]
-        v = uvw[front, 1] / uvw[front, 2]
-        col, row = np.floor(u + 0.5).astype(int), np.floor(v + 0.5).astype(int)
-        inside = (col >= 0) & (col < 620) & (row >= 0) & (row < 188)
-        u, v, col, row, w = u[inside], v[inside], col[inside], row[inside], uvw[front, 2][inside]
-        value = projected.disparity[row, col]
-        winner = (value > 0) & np.isclose(rig.camera.fb / w, value, rtol=1e-6)
-        directions = np.column_stack(
-            [(u[winner] - rig.cx) / rig.f, -(v[winner] - rig.cy) / rig.f, np.ones(winner.sum())]
-        )
-        norms = np.linalg.norm(directions, axis=1)
-        distance = _hit_distance(world_t, rig_t.position, directions / norms[:, None])
-        exact = rig.camera.fb / (distance / norms)
-        kept += int(winner.sum())
-        disagree += int((np.abs(value[winner] - exact) > 1.0).sum())
+        for chosen in (CloudFilter(0), CloudFilter()):
+            checks[str(chosen)].append(check_scan(world_t, rig_t, cloud_filter=chosen))
+    kept = sum(c.kept for c in checks["7,0.1"])
     assert kept > 30_000
-    assert removed > 0.02 * kept
-    assert disagree < 0.005 * kept
+    assert sum(c.removed for c in checks["7,0.1"]) > 0.02 * kept
+    assert sum(c.off_exact for c in checks["7,0.1"]) < 0.005 * kept
+    unfiltered = sum(c.off_exact for c in checks["0"])
+    assert unfiltered > 0.02 * sum(c.kept for c in checks["0"])  # the filter is needed
 
 
 # -- real KITTI scans into a bag, and the demo ------------------------------------------------

@@ -139,11 +139,13 @@ def project_cloud(
     chosen = CloudFilter() if cloud_filter is None else cloud_filter
     m = _matrix(matrix, (3, 4), "the projection matrix")
     depth = _depth_buffer(height, width)
+    rows_min = _rows_buffer(height, width)
     disparity = np.zeros((height, width), dtype=np.float32)
     counts = _project(
         np.ascontiguousarray(xyz),
         m,
         depth,
+        rows_min,
         float(camera.fb),
         float(camera.doffs),
         chosen.window if chosen.enabled else 0,
@@ -154,6 +156,15 @@ def project_cloud(
 
 
 _BUFFERS = threading.local()
+
+
+def _rows_buffer(height: int, width: int) -> np.ndarray:
+    """This thread's row-minimum buffer for the filter (float32, all ``inf``, as the z-buffer)."""
+    buffer = getattr(_BUFFERS, "rows", None)
+    if buffer is None or buffer.shape != (height, width):
+        buffer = np.full((height, width), np.inf, dtype=np.float32)
+        _BUFFERS.rows = buffer
+    return buffer
 
 
 def _depth_buffer(height: int, width: int) -> np.ndarray:
@@ -174,13 +185,19 @@ def _project(
     xyz: np.ndarray,
     m: np.ndarray,
     depth: np.ndarray,
+    rows_min: np.ndarray,
     fb: float,
     doffs: float,
     window: int,
     gap: float,
     disparity: np.ndarray,
 ) -> tuple[int, int, int, int, int]:  # pragma: no cover - compiled
-    """z-buffer projection, parallax filter and disparity in one call (see the module)."""
+    """z-buffer projection, parallax filter and disparity in one call (see the module).
+
+    The filter's window minimum is separable: each kept pixel first spreads its depth over its
+    row's ``window`` columns (``rows_min``), then each reads ``window`` rows of one column —
+    3·W memory operations per point with the reset, instead of W².
+    """
     height, width = depth.shape
     flat_depth = depth.ravel()  # all inf on entry; touched pixels are reset on exit
     hit = np.empty(min(xyz.shape[0], height * width), dtype=np.int64)
@@ -216,6 +233,16 @@ def _project(
     removed = 0
     half = window // 2
     flat_disparity = disparity.ravel()
+    flat_rows = rows_min.ravel()
+    if window > 1:
+        for k in range(n_hit):  # each row's minimum over the horizontal window
+            index = hit[k]
+            z = flat_depth[index]
+            row = index // width
+            col = index - row * width
+            base = row * width
+            for c in range(base + max(col - half, 0), base + min(col + half + 1, width)):
+                flat_rows[c] = min(flat_rows[c], z)
     for k in range(n_hit):
         index = hit[k]
         z = flat_depth[index]
@@ -224,20 +251,21 @@ def _project(
             row = index // width
             col = index - row * width
             limit = np.float32(z / (1.0 + gap))
-            c0 = max(col - half, 0)
-            c1 = min(col + half + 1, width)
+            nearest = np.float32(np.inf)
             for r in range(max(row - half, 0), min(row + half + 1, height)):
-                base = r * width
-                for c in range(base + c0, base + c1):
-                    if flat_depth[c] < limit:
-                        keep = False
-                        break
-                if not keep:
-                    break
+                nearest = min(nearest, flat_rows[r * width + col])
+            keep = not nearest < limit
         if keep:
             flat_disparity[index] = fb / np.float64(z) - doffs
         else:
             removed += 1
     for k in range(n_hit):
-        flat_depth[hit[k]] = np.inf
+        index = hit[k]
+        flat_depth[index] = np.inf
+        if window > 1:
+            row = index // width
+            col = index - row * width
+            base = row * width
+            for c in range(base + max(col - half, 0), base + min(col + half + 1, width)):
+                flat_rows[c] = np.inf
     return finite, in_front, inside, n_hit - removed, removed

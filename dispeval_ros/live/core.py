@@ -111,14 +111,19 @@ class CoreConfig:
 
     @property
     def topics(self) -> dict[str, str]:
-        """Every subscribed topic → the message type expected on it."""
-        expected = {self.gt_topic: POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE}
-        expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
+        """Every subscribed topic → the message type expected on it.
+
+        Calibration topics come first: a front end that serves its readers in this order
+        takes a frame's CameraInfo and transforms before the messages that complete it.
+        """
+        expected: dict[str, str] = {}
         if self.left_info_topic and self.right_info_topic:
             expected[self.left_info_topic] = CAMERA_INFO_TYPE
             expected[self.right_info_topic] = CAMERA_INFO_TYPE
         if self.tf_topic:
             expected[self.tf_topic] = TF_TYPE
+        expected[self.gt_topic] = POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE
+        expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
         return expected
 
     def as_record(self) -> dict[str, object]:

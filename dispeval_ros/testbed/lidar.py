@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dispeval_ros.core.projection import CloudFilter, project_cloud, rectified_projection
 from dispeval_ros.testbed.scene import StereoRig, Vec3, World
 
 # Columns: the LiDAR's axes (x forward, y left, z up) in world axes (x right, y up, z forward).
@@ -107,3 +108,63 @@ def lidar_to_camera(rig: StereoRig, model: LidarModel | None = None) -> np.ndarr
     transform[:3, :3] = _OPTICAL_AXES @ _LIDAR_AXES
     transform[:3, 3] = _OPTICAL_AXES @ np.asarray(chosen.offset, dtype=np.float64)
     return transform
+
+
+@dataclass(frozen=True)
+class ScanCheck:
+    """How a projected scan compares with what the left camera sees exactly.
+
+    ``kept``: pixels with a LiDAR value; ``removed``: pixels the filter emptied; ``off_exact``:
+    kept values more than ``tolerance`` px from the disparity of the camera's exact ray through
+    the point's own (sub-pixel) projection — the camera does not see that point;
+    ``off_pixel``: the same against the exact disparity at the pixel centre (``pixel_gt``),
+    which adds the rounding of points near object edges.
+    """
+
+    kept: int
+    removed: int
+    off_exact: int
+    off_pixel: int
+
+
+def check_scan(
+    world: World,
+    rig: StereoRig,
+    model: LidarModel | None = None,
+    cloud_filter: CloudFilter | None = None,
+    pixel_gt: np.ndarray | None = None,
+    tolerance: float = 1.0,
+) -> ScanCheck:
+    """Simulate, project and compare one scan with the exact ray cast (see :class:`ScanCheck`)."""
+    chosen = model or LidarModel()
+    scan = simulate_scan(world, rig, chosen).astype(np.float64)
+    k = np.array([[rig.f, 0, rig.cx, 0], [0, rig.f, rig.cy, 0], [0, 0, 1, 0]])
+    matrix = rectified_projection(lidar_to_camera(rig, chosen), np.eye(3), k)
+    shape = (rig.height, rig.width)
+    projected = project_cloud(scan, matrix, shape, rig.camera, cloud_filter)
+    # The winning point of every kept pixel, and the camera's exact ray through it.
+    uvw = np.column_stack([scan, np.ones(len(scan))]) @ matrix.T
+    front = uvw[:, 2] > 0
+    u = uvw[front, 0] / uvw[front, 2]
+    v = uvw[front, 1] / uvw[front, 2]
+    col, row = np.floor(u + 0.5).astype(int), np.floor(v + 0.5).astype(int)
+    inside = (col >= 0) & (col < rig.width) & (row >= 0) & (row < rig.height)
+    u, v, col, row, w = u[inside], v[inside], col[inside], row[inside], uvw[front, 2][inside]
+    value = projected.disparity[row, col]
+    winner = (value > 0) & np.isclose(rig.camera.fb / w, value, rtol=1e-6)
+    _, first = np.unique(row[winner] * rig.width + col[winner], return_index=True)
+    u, v = u[winner][first], v[winner][first]
+    row, col, value = row[winner][first], col[winner][first], value[winner][first]
+    directions = np.column_stack([(u - rig.cx) / rig.f, -(v - rig.cy) / rig.f, np.ones(len(u))])
+    norms = np.linalg.norm(directions, axis=1)
+    distance = _hit_distance(world, rig.position, directions / norms[:, None])
+    exact = rig.camera.fb / (distance / norms)
+    off_pixel = 0
+    if pixel_gt is not None:
+        off_pixel = int((np.abs(value - pixel_gt[row, col]) > tolerance).sum())
+    return ScanCheck(
+        kept=len(value),
+        removed=projected.removed,
+        off_exact=int((np.abs(value - exact) > tolerance).sum()),
+        off_pixel=off_pixel,
+    )
