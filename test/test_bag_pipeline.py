@@ -257,9 +257,14 @@ def test_killed_run_resumes_to_the_same_database(tmp_path: Path) -> None:
 
 
 def write_custom_bag(
-    path: Path, *, gt_encoding: str = "32FC1", method_width: int = 64, baseline: float = 0.5
+    path: Path,
+    *,
+    gt_encoding: str = "32FC1",
+    method_width: int = 64,
+    baseline: float = 0.5,
+    disparity_cameras: tuple[tuple[float, float], ...] = ((100.0, 1.0),) * 3,
 ) -> None:
-    """A hand-made bag: 3 frames, one method, chosen defects."""
+    """A hand-made bag: 3 frames, one method, chosen defects (f, t of each DisparityImage)."""
     camera = Camera(f=100.0, baseline=1.0)
     with BagWriter(path, "rosbag2-mcap") as bag:
         typestore = bag.typestore
@@ -287,14 +292,18 @@ def write_custom_bag(
             bag.write(RIGHT_INFO, stamp, right)
             bag.write(GT_TOPIC, stamp, gt_msg)
             estimate = np.full((48, method_width), 10.5, np.float32)
+            f, t = disparity_cameras[i]
             bag.write(
                 "/m/disparity",
                 stamp + 1,
-                disparity_to_msg(typestore, estimate, stamp, "l", 100.0, 1.0, 0.0, 63.0),
+                disparity_to_msg(typestore, estimate, stamp, "l", f, t, 0.0, 63.0),
             )
 
 
-def run_custom(path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+def run_custom(
+    path: Path, out: Path, capsys: pytest.CaptureFixture[str], camera_info: bool = True
+) -> tuple[int, str, str]:
+    infos = ["--camera-info", LEFT_INFO, RIGHT_INFO] if camera_info else []
     code = main(
         [
             "bag",
@@ -303,9 +312,7 @@ def run_custom(path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> tup
             GT_TOPIC,
             "--method",
             "m=/m/disparity",
-            "--camera-info",
-            LEFT_INFO,
-            RIGHT_INFO,
+            *infos,
             "--out",
             str(out),
             "--quiet",
@@ -401,3 +408,23 @@ def test_truncated_bag_is_a_clear_error_and_keeps_results(
         with ResultsStore.open(tmp_path / "out") as store:
             assert any("reading stopped" in p.message for p in store.problems())
             assert store.stamps(store.sequences()[0])
+
+
+def test_a_disparity_image_without_a_camera_fails_its_frame_not_the_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """t = 0 or NaN f (no CameraInfo topics): one failed frame each, the others metric."""
+    cameras = ((100.0, 1.0), (100.0, 0.0), (float("nan"), 1.0))
+    write_custom_bag(tmp_path / "bag", disparity_cameras=cameras)
+    code, out, _ = run_custom(tmp_path / "bag", tmp_path / "out", capsys, camera_info=False)
+    assert code == 0, out
+    assert (tmp_path / "out" / "summary.json").is_file()
+    with ResultsStore.open(tmp_path / "out") as store:
+        sequence = store.sequences()[0]
+        counts = store.match_counts(sequence)["m"]
+        assert (counts.matched, counts.failed) == (1, 2)
+        messages = [p.message for p in store.problems()]
+        assert len(messages) == 2
+        assert any("f = 100, t = 0" in m for m in messages), messages
+        assert any("f = nan, t = 1" in m for m in messages), messages
+        assert not store.sequence_scores(sequence)["m"].relative

@@ -28,6 +28,7 @@ from dispeval_ros.core.projection import (
 from dispeval_ros.core.transforms import TransformTree, rigid_matrix
 from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.messages import (
+    DisparityFrame,
     camera_from_infos,
     cloud_from_msg,
     disparity_from_msg,
@@ -263,6 +264,8 @@ class EvaluationCore:
                 self._topic(next(iter(frame_set.estimates))),
             )
             camera = self.camera(first.camera)
+            if camera is None:  # scoring it would mix relative SZE into metric totals
+                raise CalibrationError(self._no_camera(first))
             if self.config.pointcloud:
                 gt = self.cloud_disparity(frame_set.gt, camera, first.disparity.shape).disparity
             else:
@@ -274,7 +277,7 @@ class EvaluationCore:
         except DispevalError as error:
             for method in frame_set.estimates:
                 self._count_failed(method)
-            result.problems.append((None, f"ground truth at {frame_set.stamp}: {error}"))
+            result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
         for method, (stamp, msg) in frame_set.estimates.items():
             topic = self._topic(method)
@@ -293,6 +296,16 @@ class EvaluationCore:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
         return result
+
+    def _no_camera(self, first: DisparityFrame) -> str:
+        """Why a frame has no camera (f, B), and what gives it one."""
+        left, right = self.config.left_info_topic, self.config.right_info_topic
+        if left and right:
+            return f"no CameraInfo pair received yet on {left} and {right}"
+        return (
+            f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected finite "
+            "and > 0); give the CameraInfo topics to take the camera from them"
+        )
 
     def extrinsic(self, camera_frame: str, cloud_frame: str) -> np.ndarray:
         """The cloud → camera transform: explicit, the lookup hook, or /tf_static's chain."""
