@@ -163,3 +163,20 @@ def test_report_png_without_matplotlib_keeps_the_page(
     assert "report:" in captured.out
     assert captured.err.count("\n") == 1
     assert 'pip install "dispeval_ros[report]"' in captured.err
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf"])
+def test_scales_are_refused_alike_by_eval_and_bag(
+    value: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    gt = tmp_path / "gt.pfm"
+    write_pfm(gt, np.full((20, 30), 10.0, np.float32))
+    assert main(["eval", "--gt", str(gt), "--est", f"m={gt}", "--gt-scale", value]) == 2
+    one_line_error(capsys, "--gt-scale must be a finite number > 0")
+    assert main(["eval", "--gt", str(gt), "--est", f"m={gt}", "--est-scale", value]) == 2
+    one_line_error(capsys, "--est-scale must be a finite number > 0")
+    out = tmp_path / "out"
+    args = ["bag", str(gt), "--gt", "/gt", "--method", "m=/m", "--out", str(out), "--gt-scale"]
+    assert main([*args, value]) == 2
+    one_line_error(capsys, "--gt-scale must be a finite number > 0")
+    assert not out.exists()  # refused before anything was created

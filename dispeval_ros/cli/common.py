@@ -149,3 +149,12 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
         metavar="M",
         help=f"measures that form the objectives (default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)})",
     )
+
+
+def positive_option(value: float | None, option: str) -> float | None:
+    """A scale-like option: absent, or a finite number > 0 (one line naming the option)."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ConfigurationError(
+            f"{option} must be a finite number > 0 (leave it out for the default), got {value:g}"
+        )
+    return value

@@ -130,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.protocol is not None:
         return protocol_eval.run(args)
+    common.positive_option(args.gt_scale, "--gt-scale")
+    common.positive_option(args.est_scale, "--est-scale")
     camera: Camera | None = None
     masks: dict[str, np.ndarray] = {}
     gt_right = None

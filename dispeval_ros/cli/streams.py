@@ -140,7 +140,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         gt_kind="pointcloud" if cloud else args.gt_kind,
         extrinsic=extrinsic,
         cloud_filter=str(CloudFilter.parse(args.cloud_filter)),
-        gt_scale=args.gt_scale,
+        gt_scale=common.positive_option(args.gt_scale, "--gt-scale"),
         left_info_topic=left,
         right_info_topic=right,
         criteria=evaluator.criteria,
