@@ -175,3 +175,21 @@ def test_streaming_join_equals_offline_join(n: int, drops: list[int], jitter: li
         counts = joiner.counts[method]
         assert counts.matched + counts.unmatched == len(stamps)
         assert counts.matched + counts.dropped == n
+
+
+def test_a_repeated_ground_truth_stamp_is_ignored_after_its_frame_was_emitted() -> None:
+    """A bag holding a frame twice: the first stands, counts stay right, nothing scored twice."""
+    joiner: StampJoiner[str, str] = StampJoiner(["a"], tolerance=5, lateness=10, keep_events=True)
+    emitted = []
+    emitted += joiner.add_gt(100, "gt")
+    emitted += joiner.add_estimate("a", 100, "est")  # complete: emitted at once
+    emitted += joiner.add_gt(100, "gt again")  # the same frame again
+    emitted += joiner.add_estimate("a", 100, "est again")
+    emitted += joiner.add_gt(200, "next")
+    emitted += joiner.add_estimate("a", 200, "est")
+    emitted += joiner.flush()
+    assert [(f.stamp, f.gt) for f in emitted] == [(100, "gt"), (200, "next")]
+    assert joiner.repeated_gt == 1
+    assert ("repeated", "", 100) in (joiner.events or [])
+    counts = joiner.counts["a"]
+    assert (counts.matched, counts.unmatched, counts.dropped) == (2, 1, 0)

@@ -11,6 +11,7 @@ buffered frames and m methods: no all-pairs search.
 from __future__ import annotations
 
 import bisect
+from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Generic, TypeVar
@@ -19,6 +20,10 @@ from dispeval_ros.errors import ConfigurationError
 
 G = TypeVar("G")
 E = TypeVar("E")
+
+REPEAT_MEMORY_NS = 60_000_000_000
+"""How long (in stamp time) an emitted ground-truth stamp is remembered, so that the same
+stamp arriving again (a bag holding a frame twice) is ignored instead of scored twice."""
 
 
 @dataclass
@@ -67,6 +72,10 @@ class StampJoiner(Generic[G, E]):
         self._gt: dict[int, _Pending[G, E]] = {}
         self._estimates: dict[str, list[tuple[int, E]]] = {m: [] for m in self.methods}
         self._watermark: int | None = None
+        self._emitted: set[int] = set()
+        self._emitted_order: deque[int] = deque()
+        self.repeated_gt = 0
+        """Ground-truth frames ignored because their stamp was already seen (the first stands)."""
         self.events: list[tuple[str, str, int]] | None = [] if keep_events else None
         """With ``keep_events``: every ("unmatched" | "dropped", method, stamp), for slicing."""
 
@@ -74,8 +83,10 @@ class StampJoiner(Generic[G, E]):
 
     def add_gt(self, stamp: int, payload: G) -> list[FrameSet[G, E]]:
         """A ground-truth frame; returns the frame sets this completes or retires."""
-        if stamp in self._gt:
-            return self._advance(stamp)  # a repeated GT stamp: the first one stands
+        if stamp in self._gt or stamp in self._emitted:  # a repeated GT stamp: the first stands
+            self.repeated_gt += 1
+            self._event("repeated", "", stamp)
+            return self._advance(stamp)
         bisect.insort(self._gt_stamps, stamp)
         self._gt[stamp] = _Pending(FrameSet(stamp, payload), set(self.methods))
         done: list[FrameSet[G, E]] = []
@@ -119,6 +130,7 @@ class StampJoiner(Generic[G, E]):
             return None
         stamp = self._gt_stamps.pop(0)
         pending = self._gt.pop(stamp)
+        self._remember(stamp)
         for method in self.methods:
             if method not in pending.waiting:  # its estimate is lost with it
                 self.counts[method].matched -= 1
@@ -143,11 +155,19 @@ class StampJoiner(Generic[G, E]):
     def _forget(self, stamp: int) -> None:
         del self._gt[stamp]
         self._gt_stamps.pop(bisect.bisect_left(self._gt_stamps, stamp))
+        self._remember(stamp)
+
+    def _remember(self, stamp: int) -> None:
+        """A GT stamp that is done with: the same stamp again is a repeat, not a new frame."""
+        self._emitted.add(stamp)
+        self._emitted_order.append(stamp)
 
     def _advance(self, stamp: int) -> list[FrameSet[G, E]]:
         if self._watermark is None or stamp > self._watermark:
             self._watermark = stamp
         horizon = self._watermark - self.tolerance - self.lateness
+        while self._emitted_order and self._emitted_order[0] < horizon - REPEAT_MEMORY_NS:
+            self._emitted.discard(self._emitted_order.popleft())
         done = self._resolve_estimates(horizon)
         while self._gt_stamps and self._gt_stamps[0] + self.tolerance < horizon:
             done.extend(self._retire(self._gt_stamps[0]))
