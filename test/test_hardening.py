@@ -180,3 +180,34 @@ def test_scales_are_refused_alike_by_eval_and_bag(
     assert main([*args, value]) == 2
     one_line_error(capsys, "--gt-scale must be a finite number > 0")
     assert not out.exists()  # refused before anything was created
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        ["--width", "100000", "--height", "100000"],
+        ["--width", "10"],
+        ["--frames", "0"],
+        ["--fps", "nan"],
+    ],
+)
+def test_make_bag_refuses_sizes_before_writing(
+    options: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "bag"
+    assert main(["make-bag", str(out), *options]) == 2
+    one_line_error(capsys)
+    assert not out.exists()
+
+
+def test_make_bag_of_a_scene_it_cannot_read_leaves_no_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    (scene / "notes.txt").write_text("not a dataset")
+    for out in (tmp_path / "bag", tmp_path / "bag.mcap"):
+        storage = "mcap" if out.suffix else "rosbag2-mcap"
+        assert main(["make-bag", str(out), "--scene", str(scene), "--storage", storage]) == 2
+        one_line_error(capsys, str(scene))
+        assert not out.exists()

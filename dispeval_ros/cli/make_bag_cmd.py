@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import itertools
+import math
+import shutil
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
-from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.errors import ConfigurationError, InputError
 
 HELP = "write a bag with stereo images, CameraInfo, exact GT and OpenCV methods' DisparityImages"
 STORAGES = ("rosbag2-mcap", "rosbag2-sqlite3", "mcap")
@@ -59,29 +64,56 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
+MAX_SIDE = 8192
+"""Largest synthetic image side (px): 8192×8192 float32 maps are already 256 MB a frame."""
+
+
+def _remove(path: Path) -> None:
+    """Delete a bag this command started (a rosbag2 folder or an MCAP file)."""
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
 def run(args: argparse.Namespace) -> int:
     """Render or read the frames, run the methods, write the bag."""
     from dispeval_ros.offline.make_bag import dataset_frames, synthetic_frames, write_bag
     from dispeval_ros.testbed.lidar import LidarModel
 
-    if args.frames < 1 or args.fps <= 0 or args.width < 64 or args.height < 32:
-        raise ConfigurationError("need --frames ≥ 1, --fps > 0, --width ≥ 64 and --height ≥ 32")
+    if not (args.frames >= 1 and math.isfinite(args.fps) and args.fps > 0):
+        raise ConfigurationError(f"need --frames ≥ 1 and --fps > 0, got {args.frames}, {args.fps:g}")
+    if not (64 <= args.width <= MAX_SIDE and 32 <= args.height <= MAX_SIDE):
+        raise ConfigurationError(
+            f"--width must be in 64..{MAX_SIDE} and --height in 32..{MAX_SIDE}, got "
+            f"{args.width}×{args.height}"
+        )
+    if args.output.exists():
+        raise InputError(f"{args.output} exists; remove it or choose another path")
     if args.scene is not None:
-        frames = dataset_frames(args.scene)
+        frames: Iterator[Any] = dataset_frames(args.scene)
         total = None
     else:
         lidar = None if args.no_lidar else LidarModel()
         frames = synthetic_frames(args.frames, args.width, args.height, args.fps, args.seed, lidar)
         total = args.frames
+    # The first frame before the bag: a scene that cannot be read leaves no file behind.
+    first = next(frames, None)
+    if first is None:
+        raise InputError(f"{args.scene}: no frame to write")
     progress = Progress("dispeval make-bag", enabled=not args.json)
-    summary = write_bag(
-        args.output,
-        frames,
-        storage=args.storage,
-        fps=args.fps,
-        compress=args.compress,
-        progress=(lambda n: progress.update(n, total, n)) if total else None,
-    )
+    try:
+        summary = write_bag(
+            args.output,
+            itertools.chain([first], frames),
+            storage=args.storage,
+            fps=args.fps,
+            compress=args.compress,
+            progress=(lambda n: progress.update(n, total, n)) if total else None,
+        )
+    except BaseException:  # a later frame failed, or Ctrl-C: no half-written bag
+        _remove(args.output)
+        raise
     if args.json:
         print_json(summary)
     else:
