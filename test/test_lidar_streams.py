@@ -7,6 +7,7 @@ the messages or /tf_static.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -310,6 +311,9 @@ def test_demo_shows_robot_mode(tmp_path: Path, capsys: Any) -> None:
         (sequence,) = store.sequences()
         assert len(store.stamps(sequence)) == 25
         assert store.problems() == []
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())  # as dispeval bag
+    assert summary["sequences"][0]["models"]["groups"]
+    assert summary["provenance"]["version"]
 
 
 def test_slices_without_tf_static_and_report_thumbnails(drive: Path, tmp_path: Path) -> None:

@@ -63,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
 def replay_sample(args: argparse.Namespace) -> int:
     """The offline pipeline on the sample bag: what ``dispeval bag`` does on a recording."""
     from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.live.core import CoreConfig
     from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
@@ -106,6 +107,7 @@ def replay_sample(args: argparse.Namespace) -> int:
         thumbnails = error_thumbnails(store, [bag], config=config)
         write_report(build_report_data(store, title="dispeval demo", thumbnails=thumbnails), report)
         # -- end of the report
+    write_json(out / "summary.json", {**summary.to_dict(), "provenance": provenance})
     robot = robot_mode(bag, methods, out / "robot", progress)
     if args.json:
         document = {"results": str(out), "bag": str(bag), "report": str(report)}
@@ -117,7 +119,10 @@ def replay_sample(args: argparse.Namespace) -> int:
     print(run_summary_text(summary, problems))
     if robot is not None:
         print("\n" + robot_text(summary, robot))
-    print(f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'})")
+    print(
+        f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'}, "
+        f"{out / 'summary.json'})"
+    )
     print(f"report: {report}")
     print(f"(done in {time.perf_counter() - started:.1f} s)")
     return 0
