@@ -1,6 +1,6 @@
 """End-to-end offline speed: read + decode + join + score + store, in matched method-frames/s.
 
-    python bench/bench_bag.py [--frames 60] [--storage rosbag2-mcap]
+    python bench/bench_bag.py [--frames 60] [--storage rosbag2-mcap] [--bag PATH] [--keep]
 
 Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way), then times
 the reader alone (the baseline: iterate and deserialize every message), `dispeval bag` in one
@@ -36,21 +36,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--storage", default="rosbag2-mcap")
+    parser.add_argument("--bag", type=Path, help="reuse a bag this benchmark wrote before")
     args = parser.parse_args()
     root = Path(tempfile.mkdtemp(prefix="dispeval-bench-"))
-    bag = root / "drive"
-    methods = [m for m in default_methods(1242) if m.name in METHODS]
-    started = time.perf_counter()
-    write_bag(
-        bag,
-        synthetic_frames(args.frames, 1242, 375, 10.0, seed=5),
-        storage=args.storage,
-        methods=methods,
-    )
-    print(
-        f"wrote {args.frames} frames of 1242×375 ({args.storage}) "
-        f"in {time.perf_counter() - started:.1f} s: {bag}"
-    )
+    bag = args.bag or root / "drive"
+    if args.bag is None:
+        methods = [m for m in default_methods(1242) if m.name in METHODS]
+        started = time.perf_counter()
+        write_bag(
+            bag,
+            synthetic_frames(args.frames, 1242, 375, 10.0, seed=5),
+            storage=args.storage,
+            methods=methods,
+        )
+        print(
+            f"wrote {args.frames} frames of 1242×375 ({args.storage}) "
+            f"in {time.perf_counter() - started:.1f} s: {bag}"
+        )
     config = CoreConfig(
         methods={m: disparity_topic(m) for m in METHODS},
         gt_topic=GT_TOPIC,
@@ -58,12 +60,13 @@ def main() -> None:
         right_info_topic=RIGHT_INFO,
     )
     started = time.perf_counter()
-    count = 0
+    count = gts = 0
     with BagSource(bag) as source:
-        for _ in source.messages(list(config.topics)):
+        for topic, _, _ in source.messages(list(config.topics)):
             count += 1
+            gts += topic == GT_TOPIC
     read_seconds = time.perf_counter() - started
-    method_frames = args.frames * len(METHODS)
+    method_frames = gts * len(METHODS)
     print(
         f"\nreader alone: {count} messages in {read_seconds:.2f} s: "
         f"{method_frames / read_seconds:7.1f} method-frames/s (baseline)"
