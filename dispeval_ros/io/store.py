@@ -143,6 +143,52 @@ class _Layout:
         return "".join(f", f.{_quote(name)}" for name in self.measures)
 
 
+@dataclass(frozen=True)
+class PreparedUnit:
+    """A unit's database rows, made without a database (by a worker) for a writer to add."""
+
+    sequence: str
+    unit: str
+    layout: _Layout | None
+    frame_rows: list[tuple[object, ...]]
+    methods: list[str]
+    criteria: dict[str, bool]
+    problem_rows: list[tuple[object, ...]]
+    count_rows: list[tuple[object, ...]]
+
+    @property
+    def frames(self) -> int:
+        """How many (frame, method) scores the unit holds."""
+        return len({(row[1], row[2]) for row in self.frame_rows})
+
+
+def prepare_unit(
+    sequence: str,
+    unit: str,
+    frames: Sequence[FrameScores],
+    problems: Sequence[Problem] = (),
+    counts: Mapping[str, MatchCounts] | None = None,
+) -> PreparedUnit:
+    """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
+    layout = _unit_layout(unit, frames)
+    frame_rows, methods, criteria = _frame_rows(sequence, unit, frames, layout)
+    problem_rows: list[tuple[object, ...]] = []
+    for position, problem in enumerate(problems):
+        if problem.sequence != sequence:
+            raise ValueError(
+                f"unit '{unit}' of {sequence} holds a problem of sequence {problem.sequence}"
+            )
+        stamp = None if problem.stamp is None else int(problem.stamp)
+        problem_rows.append((sequence, unit, position, stamp, problem.method, problem.message))
+    count_rows: list[tuple[object, ...]] = [
+        (sequence, method, sequence, c.matched, c.unmatched, c.dropped, c.failed)
+        for method, c in (counts or {}).items()
+    ]
+    return PreparedUnit(
+        sequence, unit, layout, frame_rows, methods, criteria, problem_rows, count_rows
+    )
+
+
 class ResultsStore:
     """The results database of one run (``results.sqlite`` in the output folder).
 
@@ -263,20 +309,16 @@ class ResultsStore:
         self._require_writable()
         if self.is_done(sequence, unit):
             return
-        layout = _unit_layout(unit, frames)
-        frame_rows, methods, criteria = _frame_rows(sequence, unit, frames, layout)
-        problem_rows = []
-        for position, problem in enumerate(problems):
-            if problem.sequence != sequence:
-                raise ValueError(
-                    f"unit '{unit}' of {sequence} holds a problem of sequence {problem.sequence}"
-                )
-            stamp = None if problem.stamp is None else int(problem.stamp)
-            problem_rows.append((sequence, unit, position, stamp, problem.method, problem.message))
-        count_rows = [
-            (sequence, method, sequence, c.matched, c.unmatched, c.dropped, c.failed)
-            for method, c in (counts or {}).items()
-        ]
+        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts))
+
+    def add_prepared(self, prepared: PreparedUnit) -> None:
+        """:meth:`add_unit` of rows made by :func:`prepare_unit` (e.g. on another machine)."""
+        self._require_writable()
+        sequence, unit, layout = prepared.sequence, prepared.unit, prepared.layout
+        if self.is_done(sequence, unit):
+            return
+        frame_rows, methods, criteria = prepared.frame_rows, prepared.methods, prepared.criteria
+        problem_rows, count_rows = prepared.problem_rows, prepared.count_rows
         with self._transaction():
             if self.is_done(sequence, unit):  # again, now under the write lock
                 return

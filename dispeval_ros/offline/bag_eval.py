@@ -23,6 +23,7 @@ from dispeval_ros.offline.units import (
     DEFAULT_SLICE_NS,
     Unit,
     UnitResult,
+    UnitRows,
     auto_slice_ns,
     evaluate_unit,
     failed_result,
@@ -154,7 +155,7 @@ def _run(
     window = max(1, engine.workers * WINDOW_PER_WORKER)
     pending = list(range(len(units)))[::-1]  # a stack: lowest index on top
     attempts: Counter[int] = Counter()
-    arrived: dict[int, UnitResult] = {}
+    arrived: dict[int, UnitRows] = {}
     in_flight = 0
     written = 0
     while written < len(units):
@@ -164,7 +165,7 @@ def _run(
             in_flight += 1
         for index, outcome in engine.completed():
             in_flight -= 1
-            if isinstance(outcome, UnitResult):
+            if isinstance(outcome, UnitRows):
                 arrived[index] = outcome
                 continue
             attempts[index] += 1
@@ -176,17 +177,11 @@ def _run(
                 arrived[index] = failed_result(outcome, attempts[index])
         while written in arrived:
             result = arrived.pop(written)
-            store.add_unit(
-                result.unit.sequence,
-                result.unit.name,
-                result.frames,
-                result.problems,
-                result.counts,
-            )
+            store.add_prepared(result.rows)
             written += 1
             report.units_done += 1
-            report.frames += len(result.frames)
-            report.problems += len(result.problems)
+            report.frames += result.frames
+            report.problems += result.problems
             report.messages += result.messages
             if progress is not None:
                 progress(report.units_done, len(units), report)

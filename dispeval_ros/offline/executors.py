@@ -22,13 +22,13 @@ from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.units import (
     Unit,
     UnitFailure,
-    UnitResult,
+    UnitRows,
     close_bags,
     forget_bags,
     run_unit,
 )
 
-Outcome = tuple[int, UnitResult | UnitFailure]
+Outcome = tuple[int, UnitRows | UnitFailure]
 """A submitted unit's index and what came back."""
 
 
@@ -86,7 +86,7 @@ def _start_worker(config: CoreConfig) -> None:
     _worker_config["config"] = config
 
 
-def _run_in_worker(unit: Unit) -> UnitResult | UnitFailure:
+def _run_in_worker(unit: Unit) -> UnitRows | UnitFailure:
     return run_unit(_worker_config["config"], unit)
 
 
@@ -101,7 +101,7 @@ class PoolExecutor:
         self.config = config
         self.workers = jobs
         self._pool: ProcessPoolExecutor | None = None
-        self._running: dict[Future[UnitResult | UnitFailure], tuple[int, Unit]] = {}
+        self._running: dict[Future[UnitRows | UnitFailure], tuple[int, Unit]] = {}
 
     def check(self, paths: Sequence[Path]) -> None:
         """Nothing to check: the workers share this machine and this installation."""

@@ -21,7 +21,7 @@ from typing import Any
 
 from dispeval_ros.errors import DispevalError
 from dispeval_ros.io.bags import BagSource, require_topic
-from dispeval_ros.io.store import FrameScores, MatchCounts, Problem
+from dispeval_ros.io.store import FrameScores, MatchCounts, PreparedUnit, Problem, prepare_unit
 from dispeval_ros.live.core import CoreConfig, EvaluationCore
 from dispeval_ros.live.join import FrameSet
 
@@ -55,6 +55,24 @@ class UnitResult:
     problems: list[Problem] = field(default_factory=list)
     counts: dict[str, MatchCounts] = field(default_factory=dict)
     messages: int = 0
+
+
+@dataclass(frozen=True)
+class UnitRows:
+    """A unit's database rows (made where it ran) and what the progress display counts."""
+
+    unit: Unit
+    rows: PreparedUnit
+    frames: int
+    problems: int
+    messages: int
+
+    @classmethod
+    def of(cls, result: UnitResult) -> UnitRows:
+        """The rows of an evaluated unit."""
+        unit = result.unit
+        rows = prepare_unit(unit.sequence, unit.name, result.frames, result.problems, result.counts)
+        return cls(unit, rows, len(result.frames), len(result.problems), result.messages)
 
 
 @dataclass(frozen=True)
@@ -198,10 +216,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     return result
 
 
-def run_unit(config: CoreConfig, unit: Unit) -> UnitResult | UnitFailure:
-    """:func:`evaluate_unit`, with anything unexpected returned as a failure to retry."""
+def run_unit(config: CoreConfig, unit: Unit) -> UnitRows | UnitFailure:
+    """The rows of :func:`evaluate_unit`; anything unexpected is a failure to retry."""
     try:
-        return evaluate_unit(config, unit)
+        return UnitRows.of(evaluate_unit(config, unit))
     except Exception as error:  # a bug or exhaustion: the driver retries, then records it
         where = traceback.extract_tb(error.__traceback__)[-1]
         text = " ".join(str(error).split()) or type(error).__name__
@@ -211,17 +229,19 @@ def run_unit(config: CoreConfig, unit: Unit) -> UnitResult | UnitFailure:
         )
 
 
-def failed_result(failure: UnitFailure, attempts: int) -> UnitResult:
+def failed_result(failure: UnitFailure, attempts: int) -> UnitRows:
     """What is stored for a unit that failed every attempt: one problem, no frames."""
     unit = failure.unit
-    return UnitResult(
-        unit,
-        problems=[
-            Problem(
-                unit.sequence,
-                None,
-                None,
-                f"unit {unit.name} failed {attempts} times, not evaluated: {failure.message}",
-            )
-        ],
+    return UnitRows.of(
+        UnitResult(
+            unit,
+            problems=[
+                Problem(
+                    unit.sequence,
+                    None,
+                    None,
+                    f"unit {unit.name} failed {attempts} times, not evaluated: {failure.message}",
+                )
+            ],
+        )
     )
