@@ -157,14 +157,23 @@ def _run(
     attempts: Counter[int] = Counter()
     arrived: dict[int, UnitRows] = {}
     in_flight = 0
+    alone = False  # a retry runs alone, so a worker that dies is its own unit's fault
     written = 0
     while written < len(units):
-        while pending and in_flight < engine.workers * 2 and pending[-1] < written + window:
-            index = pending.pop()
+        while not alone and pending and in_flight < engine.workers * 2:
+            index = pending[-1]
+            if attempts[index]:
+                if in_flight:
+                    break
+                alone = True
+            elif index >= written + window:
+                break
+            pending.pop()
             engine.submit(index, units[index])
             in_flight += 1
         for index, outcome in engine.completed():
             in_flight -= 1
+            alone = alone and in_flight > 0
             if isinstance(outcome, UnitRows):
                 arrived[index] = outcome
                 continue

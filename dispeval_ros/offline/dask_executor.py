@@ -81,13 +81,19 @@ class DaskExecutor:
         count = local_workers(scheduler)
         logging.getLogger("distributed").setLevel(logging.CRITICAL)  # errors here are one line
         if count is not None:
-            self._cluster = distributed.LocalCluster(
-                n_workers=count,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.CRITICAL,
-            )
+            try:
+                self._cluster = distributed.LocalCluster(
+                    n_workers=count,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    silence_logs=logging.CRITICAL,
+                )
+            except (OSError, RuntimeError, TimeoutError) as error:
+                raise InputError(
+                    f"cannot start a local Dask cluster of {count} workers ({_one_line(error)}); "
+                    "a script that runs it needs an if __name__ == '__main__' guard"
+                ) from None
             self._client = distributed.Client(self._cluster)
         else:
             if "://" not in scheduler:
@@ -108,6 +114,11 @@ class DaskExecutor:
                 f"the Dask scheduler at {scheduler} has no worker ({_one_line(error)})"
             ) from None
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+
+    @property
+    def client(self) -> Any:
+        """The Dask client (to inspect or drive the cluster)."""
+        return self._client
 
     def check(self, paths: Sequence[Path]) -> None:
         """Every worker reads every bag and runs this dispeval version (else one line)."""
