@@ -35,7 +35,8 @@ def requirements() -> list[str]:
 
 DDS = ["cyclonedds>=0.10.5"]
 REPORT = ["matplotlib>=3.5"]
-TEST = ["pytest>=7", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT]
+DASK = ["dask[distributed]>=2023.1"]
+TEST = ["pytest>=7", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT, *DASK]
 
 
 def console_scripts() -> list[str]:
@@ -71,6 +72,7 @@ setup(
     extras_require={
         "dds": DDS,
         "report": REPORT,
+        "dask": DASK,
         "test": TEST,
         "dev": [*TEST, "ruff>=0.5", "mypy>=1.8"],
     },

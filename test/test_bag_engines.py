@@ -15,6 +15,7 @@ import pytest
 from test_bag_pipeline import database_content
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline import units as units_module
@@ -226,6 +227,7 @@ DIE_ONCE = """
 import os, sys
 from pathlib import Path
 from dispeval_ros.cli.main import main
+from dispeval_ros.errors import InputError
 from dispeval_ros.offline import units
 evaluate, marker = units.evaluate_unit, Path(sys.argv[1])
 def dies_once(config, unit):
@@ -274,3 +276,38 @@ def test_worker_check_names_the_path_and_the_version(drives: list[Path], tmp_pat
     missing = str(tmp_path / "elsewhere")
     assert missing in (check_worker([missing], __version__) or "")
     assert "0.0.0-other" in (check_worker([], "0.0.0-other") or "")
+
+
+def test_scheduler_that_goes_away_is_one_error_and_the_run_resumes(
+    drives: list[Path], reference: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import distributed
+
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, dashboard_address=None, silence_logs=50
+    )
+    executor = DaskExecutor(config(), cluster.scheduler_address)
+    record = {**config().as_record(), "slice_ns": 200_000_000}
+
+    def stop_the_scheduler(done: int, total: int, report: RunReport) -> None:
+        if done == 2:
+            cluster.close()
+
+    try:
+        with ResultsStore.create(tmp_path, record) as store:
+            with pytest.raises(InputError, match=r"lost the Dask scheduler .* --resume"):
+                evaluate_bags(
+                    drives,
+                    config(),
+                    store,
+                    executor=executor,
+                    slice_ns=200_000_000,
+                    progress=stop_the_scheduler,
+                )
+            assert 2 <= len(store.done_units("north")) < 10
+    finally:
+        executor.close()
+        cluster.close()
+    with ResultsStore.create(tmp_path, record, resume=True) as store:
+        evaluate_bags(drives, config(), store, slice_ns=200_000_000)
+    assert tables_but_run(tmp_path) == tables_but_run(reference)

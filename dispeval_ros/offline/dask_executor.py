@@ -16,6 +16,7 @@ import dataclasses
 import logging
 import os
 from collections.abc import Sequence
+from concurrent.futures import CancelledError
 from pathlib import Path
 from typing import Any
 
@@ -153,8 +154,8 @@ class DaskExecutor:
         distributed = _require_distributed()
         try:
             done, _ = distributed.wait(list(self._running), return_when="FIRST_COMPLETED")
-        except (OSError, TimeoutError) as error:
-            raise self._gone(error) from None
+        except (OSError, TimeoutError, CancelledError):  # cancelled: the scheduler went away
+            raise self._gone(None) from None
         outcomes: list[Outcome] = []
         for future in done:
             index, unit = self._running.pop(future)
