@@ -160,7 +160,7 @@ def _run(
     alone = False  # a retry runs alone, so a worker that dies is its own unit's fault
     written = 0
     while written < len(units):
-        while not alone and pending and in_flight < engine.workers * 2:
+        while not alone and pending and in_flight < window:
             index = pending[-1]
             if attempts[index]:
                 if in_flight:
