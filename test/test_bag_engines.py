@@ -311,3 +311,42 @@ def test_scheduler_that_goes_away_is_one_error_and_the_run_resumes(
     with ResultsStore.create(tmp_path, record, resume=True) as store:
         evaluate_bags(drives, config(), store, slice_ns=200_000_000)
     assert tables_but_run(tmp_path) == tables_but_run(reference)
+
+
+def test_each_bag_is_opened_once_per_process(
+    drives: list[Path], reference: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    opened: list[Path] = []
+    original = units_module.BagSource
+
+    def counting(path: Path) -> object:
+        opened.append(Path(path))
+        return original(path)
+
+    monkeypatch.setattr(units_module, "BagSource", counting)
+    record = {**config().as_record(), "slice_ns": 200_000_000}
+    with ResultsStore.create(tmp_path, record) as store:
+        report = evaluate_bags(drives, config(), store, slice_ns=200_000_000)
+    assert report.units_done > 10
+    assert sorted(opened) == sorted(drives)
+    assert tables_but_run(tmp_path) == tables_but_run(reference)
+
+
+def test_auto_slices_follow_length_and_workers_and_resume_keeps_them(
+    drives: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert units_module.auto_slice_ns(0, 3_600_000_000_000, 2) == 60_000_000_000  # 1 h: capped
+    assert units_module.auto_slice_ns(0, 80_000_000_000, 2) == 10_000_000_000  # 4 per worker
+    assert units_module.auto_slice_ns(0, 2_000_000_000, 8) == 1_000_000_000  # floor of 1 s
+    assert units_module.auto_slice_ns(0, 9_000_000_000, 2, 1_010_000_000) == 2_000_000_000
+    out = tmp_path / "auto"
+    assert main(bag_command(drives[:1], out, "--slice", "auto", "--jobs", "2")) == 0
+    with ResultsStore.open(out) as store:
+        _, info = store.sequence_info("north")
+        done = store.done_units("north")
+    assert info["slice_ns"] == 2_000_000_000  # twice the default margin of 1.01 s
+    assert main(bag_command(drives[:1], out, "--slice", "auto", "--resume")) == 0
+    with ResultsStore.open(out) as store:
+        assert store.done_units("north") == done  # same plan with one worker: nothing new
+    assert main(bag_command(drives[:1], tmp_path / "bad", "--slice", "-1")) == 2
+    assert "--slice" in capsys.readouterr().err

@@ -124,7 +124,8 @@ def _plan(
             chosen = _stored_slice(store, sequence)
         if chosen is None:
             source = open_bag(path)
-            chosen = auto_slice_ns(source.start_ns, source.end_ns, workers)
+            margin = config.tolerance_ns + config.lateness_ns
+            chosen = auto_slice_ns(source.start_ns, source.end_ns, workers, margin)
         plan = plan_bag(path, sequence, config, chosen)
         info = plan.info if slice_ns is not None else {**plan.info, "slice_ns": chosen}
         store.set_sequence(sequence, str(path), info)

@@ -27,7 +27,8 @@ from dispeval_ros.live.join import FrameSet
 
 DEFAULT_SLICE_NS = 5_000_000_000
 AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)
-"""``--slice auto`` keeps units between 1 s (overhead) and 60 s (what a kill can cost)."""
+"""``--slice auto`` keeps units between 1 s (overhead) and 60 s (what a kill can cost), and
+at least twice the margin a unit reads beyond each edge (so reading costs at most 2×)."""
 UNITS_PER_WORKER = 4
 """``--slice auto`` cuts a bag into about this many units per worker (load balance)."""
 OPEN_BAGS_PER_PROCESS = 16
@@ -128,9 +129,10 @@ def close_bags() -> None:
 # -- planning -------------------------------------------------------------------------------
 
 
-def auto_slice_ns(start_ns: int, end_ns: int, workers: int) -> int:
+def auto_slice_ns(start_ns: int, end_ns: int, workers: int, margin_ns: int = 0) -> int:
     """A slice length for a bag: about :data:`UNITS_PER_WORKER` units per worker, in bounds."""
     low, high = AUTO_SLICE_BOUNDS_NS
+    low = max(low, 2 * margin_ns)
     wanted = (end_ns - start_ns) // max(1, UNITS_PER_WORKER * workers)
     return int(min(high, max(low, wanted)) // 100_000_000 * 100_000_000)
 
