@@ -19,13 +19,11 @@ from pathlib import Path
 
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig, EvaluationCore
+from dispeval_ros.live.core import EvaluationCore
 from dispeval_ros.offline.bag_eval import evaluate_bags
 from dispeval_ros.offline.make_bag import (
     GT_TOPIC,
-    LEFT_INFO,
-    RIGHT_INFO,
-    disparity_topic,
+    bag_config,
     synthetic_frames,
     write_bag,
 )
@@ -57,12 +55,7 @@ def main() -> None:
             f"wrote {args.frames} frames of 1242×375 ({args.storage}) "
             f"in {time.perf_counter() - started:.1f} s: {bag}"
         )
-    config = CoreConfig(
-        methods={m: disparity_topic(m) for m in METHODS},
-        gt_topic=GT_TOPIC,
-        left_info_topic=LEFT_INFO,
-        right_info_topic=RIGHT_INFO,
-    )
+    config = bag_config(METHODS)
     read_seconds = math.inf
     for _ in range(args.rounds):
         started = time.perf_counter()

@@ -31,10 +31,7 @@ from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.bag_eval import evaluate_bags, sequence_names
 from dispeval_ros.offline.dask_executor import DaskExecutor
 from dispeval_ros.offline.make_bag import (
-    GT_TOPIC,
-    LEFT_INFO,
-    RIGHT_INFO,
-    disparity_topic,
+    bag_config,
     synthetic_frames,
     write_bag,
 )
@@ -95,12 +92,7 @@ def main() -> None:
         f"{args.bags} bags of {args.frames} frames, {args.width}×{args.height}, "
         f"{len(METHODS)} methods, written in {time.perf_counter() - started:.1f} s: {root}"
     )
-    config = CoreConfig(
-        methods={m: disparity_topic(m) for m in METHODS},
-        gt_topic=GT_TOPIC,
-        left_info_topic=LEFT_INFO,
-        right_info_topic=RIGHT_INFO,
-    )
+    config = bag_config(METHODS)
     runner_end, bench_end = multiprocessing.get_context("fork").Pipe()
     runner = multiprocessing.get_context("fork").Process(target=pool_runner, args=(runner_end,))
     runner.start()  # before any thread exists, so that its pools fork as the CLI's do

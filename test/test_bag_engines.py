@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from test_bag_pipeline import database_content
+from test_bag_pipeline import METHODS, bag_args, database_content
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
@@ -22,16 +22,12 @@ from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.bag_eval import RunReport, evaluate_bags
 from dispeval_ros.offline.dask_executor import DaskExecutor, check_worker
 from dispeval_ros.offline.make_bag import (
-    GT_TOPIC,
-    LEFT_INFO,
-    RIGHT_INFO,
-    disparity_topic,
+    bag_config,
     synthetic_frames,
     write_bag,
 )
 from dispeval_ros.offline.units import Unit, evaluate_unit
 
-METHODS = ("bm_fast", "sgbm")
 SLICE = ("--slice", "0.2")
 
 
@@ -48,31 +44,14 @@ def drives(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
 
 
 def config() -> CoreConfig:
-    return CoreConfig(
-        methods={name: disparity_topic(name) for name in METHODS},
-        gt_topic=GT_TOPIC,
-        left_info_topic=LEFT_INFO,
-        right_info_topic=RIGHT_INFO,
-    )
+    return bag_config(METHODS)
 
 
 def bag_command(bags: list[Path], out: Path, *extra: str) -> list[str]:
-    methods = [arg for name in METHODS for arg in ("--method", f"{name}={disparity_topic(name)}")]
-    return [
-        "bag",
-        *map(str, bags),
-        "--gt",
-        GT_TOPIC,
-        *methods,
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
-        "--out",
-        str(out),
-        "--quiet",
-        *SLICE,
-        *extra,
-    ]
+    """``dispeval bag`` of several bags, as test_bag_pipeline runs one."""
+    command = bag_args(bags[0], out, *SLICE, *extra)
+    command[2:2] = map(str, bags[1:])
+    return command
 
 
 @pytest.fixture(scope="module")

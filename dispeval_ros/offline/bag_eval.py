@@ -25,6 +25,7 @@ from dispeval_ros.offline.units import (
     UnitResult,
     UnitRows,
     auto_slice_ns,
+    close_bags,
     evaluate_unit,
     failed_result,
     open_bag,
@@ -105,6 +106,7 @@ def evaluate_bags(
     finally:
         if own:
             engine.close()
+        close_bags()  # the driver's own, opened to plan
     return report
 
 

@@ -23,6 +23,7 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagWriter
 from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
 from dispeval_ros.io.scenes import list_frames
+from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
 
 LEFT_IMAGE = "/stereo/left/image_rect"
@@ -48,6 +49,16 @@ class BagFrame:
     gt: np.ndarray
     camera: Camera | None
     stamp: float
+
+
+def bag_config(methods: Sequence[str]) -> CoreConfig:
+    """What ``dispeval bag`` needs to read these methods from a bag :func:`write_bag` wrote."""
+    return CoreConfig(
+        methods={name: disparity_topic(name) for name in methods},
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+    )
 
 
 def dataset_frames(folder: Path) -> Iterator[BagFrame]:
