@@ -154,8 +154,8 @@ class DaskExecutor:
         distributed = _require_distributed()
         try:
             done, _ = distributed.wait(list(self._running), return_when="FIRST_COMPLETED")
-        except (OSError, TimeoutError, CancelledError):  # cancelled: the scheduler went away
-            raise self._gone(None) from None
+        except (OSError, TimeoutError, CancelledError) as error:  # cancelled: scheduler gone
+            raise self._gone(error) from None
         outcomes: list[Outcome] = []
         for future in done:
             index, unit = self._running.pop(future)
@@ -165,8 +165,11 @@ class DaskExecutor:
             elif future.status == "error":
                 raised = future.exception()
                 outcomes.append((index, UnitFailure(unit, _task_error(raised))))
-            else:  # cancelled: the client lost the scheduler
+            elif future.status == "cancelled":  # the client lost the scheduler
                 raise self._gone(None)
+            else:  # "lost": its result died with its worker before it got here
+                future.release()
+                outcomes.append((index, UnitFailure(unit, "its result was lost with its worker")))
         return outcomes
 
     def _gone(self, error: BaseException | None) -> InputError:
