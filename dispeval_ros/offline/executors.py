@@ -102,6 +102,7 @@ class PoolExecutor:
         self.workers = jobs
         self._pool: ProcessPoolExecutor | None = None
         self._running: dict[Future[UnitRows | UnitFailure], tuple[int, Unit]] = {}
+        self._pool_of: dict[Future[UnitRows | UnitFailure], ProcessPoolExecutor] = {}
 
     def check(self, paths: Sequence[Path]) -> None:
         """Nothing to check: the workers share this machine and this installation."""
@@ -120,34 +121,36 @@ class PoolExecutor:
 
     def submit(self, index: int, unit: Unit) -> None:
         """Send ``unit`` to the pool (a fresh one if the last broke)."""
+        pool = self._ensure_pool()
         try:
-            future = self._ensure_pool().submit(_run_in_worker, unit)
+            future = pool.submit(_run_in_worker, unit)
         except BrokenProcessPool:
-            self._replace_pool()
-            future = self._ensure_pool().submit(_run_in_worker, unit)
+            self._replace_pool(pool)
+            pool = self._ensure_pool()
+            future = pool.submit(_run_in_worker, unit)
         self._running[future] = (index, unit)
+        self._pool_of[future] = pool
 
     def completed(self) -> list[Outcome]:
         """The units finished by now (at least one); a broken pool's units as failures."""
         done, _ = wait(list(self._running), return_when=FIRST_COMPLETED)
         outcomes: list[Outcome] = []
-        broken = False
         for future in done:
             index, unit = self._running.pop(future)
+            pool = self._pool_of.pop(future)
             error = future.exception()
             if error is None:
                 outcomes.append((index, future.result()))
                 continue
-            broken = broken or isinstance(error, BrokenProcessPool)
+            if isinstance(error, BrokenProcessPool):
+                self._replace_pool(pool)
             outcomes.append((index, UnitFailure(unit, _worker_lost(error))))
-        if broken:
-            self._replace_pool()
         return outcomes
 
-    def _replace_pool(self) -> None:
-        """Drop a broken pool; units still attributed to it fail (and are retried)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
+    def _replace_pool(self, broken: ProcessPoolExecutor) -> None:
+        """Drop a broken pool (once); its other units fail too and are retried."""
+        broken.shutdown(wait=False, cancel_futures=True)
+        if self._pool is broken:
             self._pool = None
 
     def close(self) -> None:
