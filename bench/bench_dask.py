@@ -59,12 +59,15 @@ def pool_runner(connection: Connection) -> None:
     """Time ``--jobs 2`` runs in a process without threads, as the command line runs them.
 
     (The bench process runs Dask's threads; a pool started from it would spawn its workers.)
+    Requests are (bags, config, out, jobs); a first run with jobs=1 compiles the kernels in
+    this process, so the pools' forked workers start warm, as a running Dask cluster is.
     """
     while True:
         request = connection.recv()
         if request is None:
             return
-        connection.send(timed_run(*request, jobs=2))
+        *where, jobs = request
+        connection.send(timed_run(*where, jobs=jobs))
 
 
 def main() -> None:
@@ -96,7 +99,7 @@ def main() -> None:
     runner_end, bench_end = multiprocessing.get_context("fork").Pipe()
     runner = multiprocessing.get_context("fork").Process(target=pool_runner, args=(runner_end,))
     runner.start()  # before any thread exists, so that its pools fork as the CLI's do
-    bench_end.send((bags[:2], config, root / "warm-up-pool"))
+    bench_end.send((bags[:2], config, root / "warm-up-pool", 1))
     bench_end.recv()
     import distributed
 
@@ -109,7 +112,7 @@ def main() -> None:
     timed_run(bags[:2], config, root / "warm-up", scheduler=cluster.scheduler_address)
     pool, dask = [], []
     for _ in range(args.rounds):
-        bench_end.send((bags, config, root / "pool"))
+        bench_end.send((bags, config, root / "pool", 2))
         pool.append(bench_end.recv())
         dask.append(timed_run(bags, config, root / "dask", scheduler=cluster.scheduler_address))
     bench_end.send(None)
