@@ -35,8 +35,9 @@ def requirements() -> list[str]:
 
 DDS = ["cyclonedds>=0.10.5"]
 REPORT = ["matplotlib>=3.5"]
+DASK = ["dask[distributed]>=2023.1"]
 # pytest 9 aborts every run once launch_testing (part of any ROS 2 install) is importable.
-TEST = ["pytest>=7,<9", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT]
+TEST = ["pytest>=7,<9", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT, *DASK]
 
 
 def console_scripts() -> list[str]:
@@ -72,6 +73,7 @@ setup(
     extras_require={
         "dds": DDS,
         "report": REPORT,
+        "dask": DASK,
         "test": TEST,
         "dev": [*TEST, "ruff>=0.5", "mypy>=1.8"],
     },

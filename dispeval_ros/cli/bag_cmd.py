@@ -37,14 +37,39 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     run = streams.add_stream_options(parser, "log time")
     run.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    run.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on a Dask cluster: tcp://HOST:PORT of its scheduler (the workers "
+        "must see the bag paths), or local:N for a local cluster of N worker processes",
+    )
     run.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     run.add_argument(
-        "--slice", type=float, default=5.0, help="seconds of bag per unit of work (default 5)"
+        "--slice",
+        default="5",
+        metavar="SECONDS|auto",
+        help="seconds of bag per unit of work (default 5); auto: from each bag's length and "
+        "the number of workers",
     )
     run.add_argument("--quiet", action="store_true", help="no progress line")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     protocol_eval.add_stream_option(parser)
     parser.set_defaults(run=run_command)
+
+
+def slice_option(text: str) -> int | None:
+    """``--slice`` in nanoseconds (None for auto); one line when it is not a positive number."""
+    if text == "auto":
+        return None
+    try:
+        slice_ns = round(float(text) * 1e9)
+    except ValueError:
+        slice_ns = 0
+    if slice_ns <= 0:
+        raise ConfigurationError(
+            f"--slice must be a positive number of seconds or auto, got {text}"
+        )
+    return slice_ns
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -56,12 +81,10 @@ def run_command(args: argparse.Namespace) -> int:
 
     preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")
-    slice_ns = round(args.slice * 1e9)
-    if slice_ns <= 0:
-        raise ConfigurationError(f"--slice must be positive, got {args.slice}")
+    slice_ns = slice_option(args.slice)
     record = {
         **config.as_record(),
-        "slice_ns": slice_ns,
+        "slice_ns": "auto" if slice_ns is None else slice_ns,
         "bags": [str(path) for path in args.bags],
         **preset,
     }
@@ -72,6 +95,7 @@ def run_command(args: argparse.Namespace) -> int:
             config,
             store,
             jobs=args.jobs,
+            scheduler=args.scheduler,
             slice_ns=slice_ns,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
         )
@@ -89,7 +113,9 @@ def run_command(args: argparse.Namespace) -> int:
         f"{args.out / 'frames.csv'}, {args.out / 'summary.json'})"
     )
     print(
-        f"this run: {report.units_done} units, {report.frames} method-frames, {report.messages} messages read"
+        f"this run: {report.units_done} units, {report.frames} method-frames, "
+        f"{report.messages} messages read"
+        + (f", {report.retries} unit(s) retried" if report.retries else "")
     )
     if preset:
         print(protocol_eval.preset_note(args.protocol))

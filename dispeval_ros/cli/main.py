@@ -13,13 +13,24 @@ from dispeval_ros.cli import (
     eval_cmd,
     live_cmd,
     make_bag_cmd,
+    merge_cmd,
     models_cmd,
     play_cmd,
     report_cmd,  # the interactive HTML report
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 
-COMMANDS = (eval_cmd, bag_cmd, models_cmd, make_bag_cmd, demo_cmd, live_cmd, play_cmd, report_cmd)
+COMMANDS = (
+    eval_cmd,
+    bag_cmd,
+    merge_cmd,
+    models_cmd,
+    make_bag_cmd,
+    demo_cmd,
+    live_cmd,
+    play_cmd,
+    report_cmd,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -53,6 +53,15 @@ _SCHEMA = (
     "dropped INTEGER NOT NULL, failed INTEGER NOT NULL, PRIMARY KEY (sequence, method))",
 )
 
+_ADD_COUNTS = (
+    "INSERT INTO match_counts "
+    "(sequence, method, ordinal, matched, unmatched, dropped, failed) VALUES (?, ?, "
+    "(SELECT COALESCE(MAX(ordinal), -1) + 1 FROM match_counts WHERE sequence = ?), "
+    "?, ?, ?, ?) ON CONFLICT (sequence, method) DO UPDATE SET "
+    "matched = matched + excluded.matched, unmatched = unmatched + excluded.unmatched, "
+    "dropped = dropped + excluded.dropped, failed = failed + excluded.failed"
+)
+"""Add a unit's match counts to its sequence's (rows: sequence, method, sequence, counts…)."""
 _ORDERED_FRAMES = (
     " FROM frames f JOIN sequences s ON s.name = f.sequence JOIN methods m ON m.name = f.method"
     " JOIN criteria c ON c.name = f.criterion"
@@ -141,6 +150,52 @@ class _Layout:
 
     def measure_columns(self) -> str:
         return "".join(f", f.{_quote(name)}" for name in self.measures)
+
+
+@dataclass(frozen=True)
+class PreparedUnit:
+    """A unit's database rows, made without a database (by a worker) for a writer to add."""
+
+    sequence: str
+    unit: str
+    layout: _Layout | None
+    frame_rows: list[tuple[object, ...]]
+    methods: list[str]
+    criteria: dict[str, bool]
+    problem_rows: list[tuple[object, ...]]
+    count_rows: list[tuple[object, ...]]
+
+    @property
+    def frames(self) -> int:
+        """How many (frame, method) scores the unit holds."""
+        return len({(row[1], row[2]) for row in self.frame_rows})
+
+
+def prepare_unit(
+    sequence: str,
+    unit: str,
+    frames: Sequence[FrameScores],
+    problems: Sequence[Problem] = (),
+    counts: Mapping[str, MatchCounts] | None = None,
+) -> PreparedUnit:
+    """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
+    layout = _unit_layout(unit, frames)
+    frame_rows, methods, criteria = _frame_rows(sequence, unit, frames, layout)
+    problem_rows: list[tuple[object, ...]] = []
+    for position, problem in enumerate(problems):
+        if problem.sequence != sequence:
+            raise ValueError(
+                f"unit '{unit}' of {sequence} holds a problem of sequence {problem.sequence}"
+            )
+        stamp = None if problem.stamp is None else int(problem.stamp)
+        problem_rows.append((sequence, unit, position, stamp, problem.method, problem.message))
+    count_rows: list[tuple[object, ...]] = [
+        (sequence, method, sequence, c.matched, c.unmatched, c.dropped, c.failed)
+        for method, c in (counts or {}).items()
+    ]
+    return PreparedUnit(
+        sequence, unit, layout, frame_rows, methods, criteria, problem_rows, count_rows
+    )
 
 
 class ResultsStore:
@@ -281,20 +336,16 @@ class ResultsStore:
         self._require_writable()
         if self.is_done(sequence, unit):
             return
-        layout = _unit_layout(unit, frames)
-        frame_rows, methods, criteria = _frame_rows(sequence, unit, frames, layout)
-        problem_rows = []
-        for position, problem in enumerate(problems):
-            if problem.sequence != sequence:
-                raise ValueError(
-                    f"unit '{unit}' of {sequence} holds a problem of sequence {problem.sequence}"
-                )
-            stamp = None if problem.stamp is None else int(problem.stamp)
-            problem_rows.append((sequence, unit, position, stamp, problem.method, problem.message))
-        count_rows = [
-            (sequence, method, sequence, c.matched, c.unmatched, c.dropped, c.failed)
-            for method, c in (counts or {}).items()
-        ]
+        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts))
+
+    def add_prepared(self, prepared: PreparedUnit) -> None:
+        """:meth:`add_unit` of rows made by :func:`prepare_unit` (e.g. on another machine)."""
+        self._require_writable()
+        sequence, unit, layout = prepared.sequence, prepared.unit, prepared.layout
+        if self.is_done(sequence, unit):
+            return
+        frame_rows, methods, criteria = prepared.frame_rows, prepared.methods, prepared.criteria
+        problem_rows, count_rows = prepared.problem_rows, prepared.count_rows
         with self._transaction():
             if self.is_done(sequence, unit):  # again, now under the write lock
                 return
@@ -326,15 +377,7 @@ class ResultsStore:
                 "VALUES (?, ?, ?, ?, ?, ?)",
                 problem_rows,
             )
-            self._db.executemany(
-                "INSERT INTO match_counts "
-                "(sequence, method, ordinal, matched, unmatched, dropped, failed) VALUES (?, ?, "
-                "(SELECT COALESCE(MAX(ordinal), -1) + 1 FROM match_counts WHERE sequence = ?), "
-                "?, ?, ?, ?) ON CONFLICT (sequence, method) DO UPDATE SET "
-                "matched = matched + excluded.matched, unmatched = unmatched + excluded.unmatched, "
-                "dropped = dropped + excluded.dropped, failed = failed + excluded.failed",
-                count_rows,
-            )
+            self._db.executemany(_ADD_COUNTS, count_rows)
             self._db.execute(
                 "INSERT INTO units (sequence, unit, ordinal) "
                 "VALUES (?, ?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM units))",
@@ -342,6 +385,84 @@ class ResultsStore:
             )
         if self._layout is None:
             self._layout = self._read_layout()
+
+    def add_results(self, other: ResultsStore) -> int:
+        """Copy every unit of ``other`` (frames, problems, match counts) in one transaction.
+
+        Returns the units added. Refuses (one line) results of another scoring layout, a
+        sequence both hold from different bags, and a unit both hold (it would count twice).
+        """
+        self._require_writable()
+        layout = other._current_layout()
+        mine = set(self.sequences())
+        units = other._db.execute("SELECT sequence, unit FROM units ORDER BY ordinal").fetchall()
+        with self._transaction():
+            if layout is not None:
+                self._use_layout(layout)
+            for sequence in other.sequences():
+                source, info = other.sequence_info(sequence)
+                if sequence in mine and self.sequence_info(sequence) != (source, info):
+                    raise ConfigurationError(
+                        f"{other.path}: sequence {sequence} comes from {source or 'elsewhere'}"
+                        f", in {self.path} from {self.sequence_info(sequence)[0] or 'elsewhere'}"
+                    )
+                self._register_sequence(sequence)
+                self._db.execute(
+                    "UPDATE sequences SET source = ?, info = ? WHERE name = ?",
+                    (source, _json(info, f"the metadata of sequence {sequence}"), sequence),
+                )
+            for sequence, unit in units:
+                if self.is_done(sequence, unit):
+                    raise ConfigurationError(
+                        f"{other.path}: unit {unit} of sequence {sequence} is in {self.path} "
+                        "already; merging it again would count it twice"
+                    )
+                self._db.execute(
+                    "INSERT INTO units (sequence, unit, ordinal) "
+                    "VALUES (?, ?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM units))",
+                    (sequence, unit),
+                )
+            self._db.executemany(
+                "INSERT OR IGNORE INTO methods (name, ordinal) "
+                "VALUES (?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM methods))",
+                [(method,) for method in other.methods()],
+            )
+            _, overlapping = other._criterion_order()
+            self._db.executemany(
+                "INSERT OR IGNORE INTO criteria (name, ordinal, overlapping) "
+                "VALUES (?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM criteria), ?)",
+                [(name, name in overlapping) for name in other.criteria()],
+            )
+            if layout is not None:
+                columns = "sequence, stamp, method, criterion, n" + "".join(
+                    f", {_quote(name)}" for name in layout.measures
+                )
+                try:
+                    self._db.executemany(
+                        layout.insert_frames(),
+                        other._db.execute(f"SELECT {columns}, sums, relative FROM frames"),
+                    )
+                except sqlite3.IntegrityError:
+                    raise ConfigurationError(
+                        f"{other.path} holds frames (sequence, stamp, method) that {self.path} "
+                        "holds already"
+                    ) from None
+            self._db.executemany(
+                "INSERT INTO problems (sequence, unit, position, stamp, method, message) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                other._db.execute(
+                    "SELECT sequence, unit, position, stamp, method, message FROM problems"
+                ),
+            )
+            self._db.executemany(
+                _ADD_COUNTS,
+                other._db.execute(
+                    "SELECT sequence, method, sequence, matched, unmatched, dropped, failed "
+                    "FROM match_counts ORDER BY sequence, ordinal"
+                ),
+            )
+        self._layout = self._read_layout()
+        return len(units)
 
     def set_sequence(self, sequence: str, source: str, info: Mapping[str, object]) -> None:
         """Record (or replace) a sequence's metadata: bag path, camera, topics, start/end."""

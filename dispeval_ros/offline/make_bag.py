@@ -30,6 +30,7 @@ from dispeval_ros.io.messages import (
     tf_static_to_msg,
 )
 from dispeval_ros.io.scenes import list_frames
+from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
 from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, simulate_scan
 from dispeval_ros.testbed.scene import driving_setup, driving_world_at
@@ -79,6 +80,16 @@ def static_transforms(cloud_to_camera: np.ndarray) -> list[StaticTransform]:
         StaticTransform(BASE_FRAME, LIDAR_FRAME, LIDAR_MOUNT),
         StaticTransform(BASE_FRAME, CAMERA_FRAME, camera_pose),
     ]
+
+
+def bag_config(methods: Sequence[str]) -> CoreConfig:
+    """What ``dispeval bag`` needs to read these methods from a bag :func:`write_bag` wrote."""
+    return CoreConfig(
+        methods={name: disparity_topic(name) for name in methods},
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+    )
 
 
 def dataset_frames(folder: Path) -> Iterator[BagFrame]:

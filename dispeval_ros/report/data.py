@@ -598,7 +598,7 @@ def error_thumbnails(
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.live.core import EvaluationCore
     from dispeval_ros.live.images import colour_error
-    from dispeval_ros.offline.bag_eval import push_static_transforms
+    from dispeval_ros.offline.units import push_static_transforms
 
     if count <= 0 or not bags:
         return None

@@ -1,0 +1,181 @@
+"""Where the units of ``dispeval bag`` run: in process, a process pool, or a Dask cluster.
+
+An executor takes units, runs :func:`~dispeval_ros.offline.units.run_unit` on them wherever
+it runs work and hands back each outcome as it completes; it never touches the results
+database (the driver in :mod:`dispeval_ros.offline.bag_eval` is its only writer and decides
+what to retry). Workers stay alive across units, so each opens a bag once.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import threading
+from collections import deque
+from collections.abc import Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+from typing import Protocol
+
+from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.live.core import CoreConfig
+from dispeval_ros.offline.units import (
+    Unit,
+    UnitFailure,
+    UnitRows,
+    close_bags,
+    forget_bags,
+    run_unit,
+)
+
+Outcome = tuple[int, UnitRows | UnitFailure]
+"""A submitted unit's index and what came back."""
+
+
+class Executor(Protocol):
+    """Runs units somewhere; outcomes come back as they complete."""
+
+    workers: int
+    """How many units run at once (to size the units and the submission window)."""
+
+    def check(self, paths: Sequence[Path]) -> None:
+        """Refuse (one line) when a worker cannot run the units: bag paths, version."""
+
+    def submit(self, index: int, unit: Unit) -> None:
+        """Start running ``unit`` (``index`` comes back with its outcome)."""
+
+    def completed(self) -> list[Outcome]:
+        """Wait for at least one submitted unit; its outcome (and any others ready)."""
+
+    def close(self) -> None:
+        """Release the workers."""
+
+
+class InProcessExecutor:
+    """Runs each unit when asked for outcomes, in this process (bags stay open meanwhile)."""
+
+    workers = 1
+
+    def __init__(self, config: CoreConfig) -> None:
+        self.config = config
+        self._queue: deque[tuple[int, Unit]] = deque()
+
+    def check(self, paths: Sequence[Path]) -> None:
+        """Nothing to check: the driver reads the bags itself."""
+
+    def submit(self, index: int, unit: Unit) -> None:
+        """Queue ``unit``; it runs when an outcome is asked for."""
+        self._queue.append((index, unit))
+
+    def completed(self) -> list[Outcome]:
+        """Run the oldest queued unit here."""
+        index, unit = self._queue.popleft()
+        return [(index, run_unit(self.config, unit))]
+
+    def close(self) -> None:
+        """Close the bags this process opened."""
+        close_bags()
+
+
+_worker_config: dict[str, CoreConfig] = {}
+"""A pool worker's configuration, set once when it starts (not sent with every unit)."""
+
+
+def _start_worker(config: CoreConfig) -> None:
+    forget_bags()
+    _worker_config["config"] = config
+
+
+def _run_in_worker(unit: Unit) -> UnitRows | UnitFailure:
+    return run_unit(_worker_config["config"], unit)
+
+
+class PoolExecutor:
+    """``--jobs N``: N worker processes that live for the whole run.
+
+    A worker that dies breaks the pool: the units it held come back as failures (the driver
+    retries them) and a fresh pool takes over.
+    """
+
+    def __init__(self, config: CoreConfig, jobs: int) -> None:
+        self.config = config
+        self.workers = jobs
+        self._pool: ProcessPoolExecutor | None = None
+        self._running: dict[Future[UnitRows | UnitFailure], tuple[int, Unit]] = {}
+        self._pool_of: dict[Future[UnitRows | UnitFailure], ProcessPoolExecutor] = {}
+
+    def check(self, paths: Sequence[Path]) -> None:
+        """Nothing to check: the workers share this machine and this installation."""
+
+    def _ensure_pool(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            # fork is fastest, but forking a process with threads can deadlock its children
+            method = "spawn" if threading.active_count() > 1 else "fork"
+            self._pool = ProcessPoolExecutor(
+                self.workers,
+                mp_context=multiprocessing.get_context(method),
+                initializer=_start_worker,
+                initargs=(self.config,),
+            )
+        return self._pool
+
+    def submit(self, index: int, unit: Unit) -> None:
+        """Send ``unit`` to the pool (a fresh one if the last broke)."""
+        pool = self._ensure_pool()
+        try:
+            future = pool.submit(_run_in_worker, unit)
+        except BrokenProcessPool:
+            self._replace_pool(pool)
+            pool = self._ensure_pool()
+            future = pool.submit(_run_in_worker, unit)
+        self._running[future] = (index, unit)
+        self._pool_of[future] = pool
+
+    def completed(self) -> list[Outcome]:
+        """The units finished by now (at least one); a broken pool's units as failures."""
+        done, _ = wait(list(self._running), return_when=FIRST_COMPLETED)
+        outcomes: list[Outcome] = []
+        for future in done:
+            index, unit = self._running.pop(future)
+            pool = self._pool_of.pop(future)
+            error = future.exception()
+            if error is None:
+                outcomes.append((index, future.result()))
+                continue
+            if isinstance(error, BrokenProcessPool):
+                self._replace_pool(pool)
+            outcomes.append((index, UnitFailure(unit, _worker_lost(error))))
+        return outcomes
+
+    def _replace_pool(self, broken: ProcessPoolExecutor) -> None:
+        """Drop a broken pool (once); its other units fail too and are retried."""
+        broken.shutdown(wait=False, cancel_futures=True)
+        if self._pool is broken:
+            self._pool = None
+
+    def close(self) -> None:
+        """Stop the worker processes."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+def _worker_lost(error: BaseException) -> str:
+    if isinstance(error, BrokenProcessPool):
+        return "a worker process died while running it"
+    return f"{type(error).__name__}: {' '.join(str(error).split())}"
+
+
+def make_executor(config: CoreConfig, jobs: int = 1, scheduler: str | None = None) -> Executor:
+    """The executor the options ask for: a Dask scheduler, ``jobs`` processes, or in process."""
+    if jobs < 1:
+        raise ConfigurationError(f"--jobs must be at least 1, got {jobs}")
+    if scheduler is not None:
+        if jobs != 1:
+            raise ConfigurationError("give --jobs or --scheduler, not both")
+        from dispeval_ros.offline.dask_executor import DaskExecutor
+
+        return DaskExecutor(config, scheduler)
+    if jobs == 1:
+        return InProcessExecutor(config)
+    return PoolExecutor(config, jobs)

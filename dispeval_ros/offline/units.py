@@ -1,0 +1,313 @@
+"""Units of work of ``dispeval bag``: time slices of bags, planned by the driver, run anywhere.
+
+A unit is read, joined and scored independently, by whichever executor runs it (in process,
+a process pool, a Dask worker), and comes back as rows for the driver to store. A unit reads
+``margin`` beyond its edges so that frames near an edge join exactly as in a single pass; it
+keeps only the ground-truth frames, unmatched estimates and dropped frames whose stamps fall
+inside it.
+
+Each process opens a bag once and keeps it open for the units it runs (opening a rosbag2
+folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frames).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+import traceback
+from collections import Counter, OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dispeval_ros.errors import DispevalError, InputError
+from dispeval_ros.io.bags import BagSource, require_topic
+from dispeval_ros.io.store import FrameScores, MatchCounts, PreparedUnit, Problem, prepare_unit
+from dispeval_ros.live.core import CoreConfig, EvaluationCore
+from dispeval_ros.live.join import FrameSet
+
+DEFAULT_SLICE_NS = 5_000_000_000
+AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)
+"""``--slice auto`` keeps units between 1 s (overhead) and 60 s (what a kill can cost), and
+at least twice the margin a unit reads beyond each edge (so reading costs at most 2×)."""
+UNITS_PER_WORKER = 4
+"""``--slice auto`` cuts a bag into about this many units per worker (load balance)."""
+OPEN_BAGS_PER_PROCESS = 16
+_FIRST, _LAST = -(2**62), 2**62
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One time slice ``[start_ns, stop_ns)`` of one bag (stamps, in nanoseconds)."""
+
+    path: Path
+    sequence: str
+    name: str
+    start_ns: int
+    stop_ns: int
+    margin_ns: int
+
+
+@dataclass
+class UnitResult:
+    """What one unit produced, ready to be written in one transaction."""
+
+    unit: Unit
+    frames: list[FrameScores] = field(default_factory=list)
+    problems: list[Problem] = field(default_factory=list)
+    counts: dict[str, MatchCounts] = field(default_factory=dict)
+    messages: int = 0
+
+
+@dataclass(frozen=True)
+class UnitRows:
+    """A unit's database rows (made where it ran) and what the progress display counts."""
+
+    unit: Unit
+    rows: PreparedUnit
+    frames: int
+    problems: int
+    messages: int
+
+    @classmethod
+    def of(cls, result: UnitResult) -> UnitRows:
+        """The rows of an evaluated unit."""
+        unit = result.unit
+        rows = prepare_unit(unit.sequence, unit.name, result.frames, result.problems, result.counts)
+        return cls(unit, rows, len(result.frames), len(result.problems), result.messages)
+
+
+@dataclass(frozen=True)
+class UnitFailure:
+    """A unit that raised (a bug, memory) or whose worker died: the driver retries it."""
+
+    unit: Unit
+    message: str
+
+
+@dataclass(frozen=True)
+class BagPlan:
+    """A bag's units and what the results database records about it."""
+
+    units: list[Unit]
+    info: dict[str, object]
+
+
+# -- opening bags once per process ----------------------------------------------------------
+
+_open_bags: OrderedDict[tuple[str, int, int], BagSource] = OrderedDict()
+
+
+def open_bag(path: Path) -> BagSource:
+    """The bag at ``path``, opened once per process (reopened when the file changes)."""
+    try:
+        stat = os.stat(path)
+        key = (str(path), stat.st_mtime_ns, stat.st_size)
+    except OSError:
+        return BagSource(path)  # raises the bag reader's one-line error
+    source = _open_bags.get(key)
+    if source is not None:
+        _open_bags.move_to_end(key)
+        return source
+    source = BagSource(path)
+    _open_bags[key] = source
+    while len(_open_bags) > OPEN_BAGS_PER_PROCESS:
+        _open_bags.popitem(last=False)[1].close()
+    return source
+
+
+def forget_bags() -> None:
+    """Drop the bags a forked child inherited (their file positions are the parent's)."""
+    _open_bags.clear()
+
+
+def close_bags() -> None:
+    """Close every bag this process keeps open."""
+    while _open_bags:
+        _open_bags.popitem()[1].close()
+
+
+# -- memory ---------------------------------------------------------------------------------
+
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
+HEAP_ARRAYS_BYTES = 64 << 20
+"""Arrays up to this size come from the heap, and up to twice it stays mapped when freed."""
+_allocator: dict[str, bool] = {}
+
+
+def keep_frames_on_the_heap() -> None:
+    """Let glibc reuse the heap for frame-sized arrays (once per process; Linux only).
+
+    A unit allocates and frees arrays of a few MB per frame. When glibc maps each one afresh,
+    every use pays page faults: a unit runs 2–3× slower, as in Dask workers, whose nanny sets
+    ``MALLOC_TRIM_THRESHOLD_`` (which freezes glibc's adaptive mmap threshold), and still
+    ~20 % slower with glibc's defaults (measured with bench/bench_bag.py, bench_dask.py).
+    """
+    if _allocator or not sys.platform.startswith("linux"):
+        return
+    _allocator["tuned"] = True
+    try:
+        mallopt = ctypes.CDLL("libc.so.6").mallopt
+    except (OSError, AttributeError):  # not glibc: nothing to tune
+        return
+    mallopt(_M_MMAP_THRESHOLD, HEAP_ARRAYS_BYTES)
+    mallopt(_M_TRIM_THRESHOLD, 2 * HEAP_ARRAYS_BYTES)
+
+
+# -- planning -------------------------------------------------------------------------------
+
+
+def auto_slice_ns(start_ns: int, end_ns: int, workers: int, margin_ns: int = 0) -> int:
+    """A slice length for a bag: about :data:`UNITS_PER_WORKER` units per worker, in bounds."""
+    low, high = AUTO_SLICE_BOUNDS_NS
+    low = max(low, 2 * margin_ns)
+    wanted = (end_ns - start_ns) // max(1, UNITS_PER_WORKER * workers)
+    return int(min(high, max(low, wanted)) // 100_000_000 * 100_000_000)
+
+
+def check_topics(source: BagSource, config: CoreConfig) -> None:
+    """Every configured topic exists with the expected type (else one error listing the bag's topics)."""
+    for topic, msgtype in config.topics.items():
+        if topic == config.tf_topic and topic not in source.topics:
+            raise InputError(
+                f"{source.path} has no {topic} to take the LiDAR → camera transform from; "
+                "give it with --extrinsic FILE (a 4×4 matrix or 'x y z qx qy qz qw')"
+            )
+        require_topic(source, topic, [msgtype])
+
+
+def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
+    """Give ``core`` every /tf_static message of the bag (point-cloud GT without --extrinsic).
+
+    Static transforms are latched: recorded once, near the start, so a slice of the bag read
+    on its own would miss them.
+    """
+    topic = core.config.tf_topic
+    if topic:
+        for _, _, msg in source.messages([topic]):
+            core.push(topic, msg)
+
+
+def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> BagPlan:
+    """Check the bag's topics and cut its time span into slices of ``slice_ns``.
+
+    The plan depends only on the bag and the slice length, so a resumed run (with any
+    executor) finds the same units.
+    """
+    source = open_bag(path)
+    check_topics(source, config)
+    start, end = source.start_ns, source.end_ns
+    margin = config.tolerance_ns + config.lateness_ns
+    units = []
+    edge = start - margin  # header stamps may precede the first log time
+    index = 0
+    while edge <= end + margin:
+        stop = edge + slice_ns
+        units.append(Unit(path, sequence, f"{index:06d}", edge, stop, margin))
+        edge = stop
+        index += 1
+    units[0] = Unit(path, sequence, units[0].name, _FIRST, units[0].stop_ns, margin)
+    last = units[-1]
+    units[-1] = Unit(path, sequence, last.name, last.start_ns, _LAST, margin)
+    info: dict[str, object] = {
+        "format": source.format,
+        "start_ns": source.start_ns,
+        "end_ns": source.end_ns,
+        "messages": source.message_count,
+    }
+    return BagPlan(units, info)
+
+
+# -- running --------------------------------------------------------------------------------
+
+
+def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
+    """Read, join and score one slice; per-frame problems are recorded, never raised."""
+    result = UnitResult(unit)
+    core = EvaluationCore(config, keep_events=True)
+    inside = range(unit.start_ns, unit.stop_ns)
+    matched: Counter[str] = Counter()
+    failed: Counter[str] = Counter()
+
+    def handle(frame_sets: list[FrameSet[Any, Any]]) -> None:
+        for frame_set in frame_sets:
+            if frame_set.stamp not in inside:
+                continue
+            frame = core.score(frame_set)
+            for method, scores in frame.scores.items():
+                result.frames.append(FrameScores(unit.sequence, frame.stamp, method, scores))
+                matched[method] += 1
+            for method in frame_set.estimates:
+                if method not in frame.scores:
+                    failed[method] += 1
+            result.problems.extend(
+                Problem(unit.sequence, frame.stamp, method, message)
+                for method, message in frame.problems
+            )
+
+    read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns
+    read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
+    try:
+        source = open_bag(unit.path)
+        push_static_transforms(source, core)
+        for topic, _, msg in source.messages(list(config.topics), read_from, read_to):
+            result.messages += 1
+            handle(core.push(topic, msg))
+    except DispevalError as error:
+        result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
+    handle(core.flush())
+    events = Counter(
+        (kind, method) for kind, method, stamp in core.joiner.events or [] if stamp in inside
+    )
+    result.problems.extend(
+        Problem(
+            unit.sequence,
+            stamp,
+            None,
+            f"{config.gt_topic} holds the frame at {stamp} more than once: the first is scored, "
+            "the others are ignored",
+        )
+        for kind, _, stamp in core.joiner.events or []
+        if kind == "repeated" and stamp in inside
+    )
+    for method in config.methods:
+        result.counts[method] = MatchCounts(
+            matched=matched[method],
+            unmatched=events["unmatched", method],
+            dropped=events["dropped", method],
+            failed=failed[method],
+        )
+    return result
+
+
+def run_unit(config: CoreConfig, unit: Unit) -> UnitRows | UnitFailure:
+    """The rows of :func:`evaluate_unit`; anything unexpected is a failure to retry."""
+    keep_frames_on_the_heap()
+    try:
+        return UnitRows.of(evaluate_unit(config, unit))
+    except Exception as error:  # a bug or exhaustion: the driver retries, then records it
+        where = traceback.extract_tb(error.__traceback__)[-1]
+        text = " ".join(str(error).split()) or type(error).__name__
+        return UnitFailure(
+            unit,
+            f"{type(error).__name__}: {text} ({Path(where.filename).name}:{where.lineno})",
+        )
+
+
+def failed_result(failure: UnitFailure, attempts: int) -> UnitRows:
+    """What is stored for a unit that failed every attempt: one problem, no frames."""
+    unit = failure.unit
+    return UnitRows.of(
+        UnitResult(
+            unit,
+            problems=[
+                Problem(
+                    unit.sequence,
+                    None,
+                    None,
+                    f"unit {unit.name} failed {attempts} times, not evaluated: {failure.message}",
+                )
+            ],
+        )
+    )
