@@ -35,7 +35,16 @@ def requirements() -> list[str]:
 
 DDS = ["cyclonedds>=0.10.5"]
 REPORT = ["matplotlib>=3.5"]
-TEST = ["pytest>=7", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT]
+# moocore: reference non-dominated sorting for bench/bench_models.py (never imported by the package)
+TEST = [
+    "pytest>=7",
+    "hypothesis>=6",
+    "pillow>=9",
+    "playwright>=1.40",
+    "moocore>=0.1.7",
+    *DDS,
+    *REPORT,
+]
 
 
 def console_scripts() -> list[str]:
