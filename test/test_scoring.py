@@ -767,6 +767,42 @@ def test_cache_follows_masks_and_roi_contents() -> None:
     assert evaluator.score(gt, gt, masks=masks, roi=roi)["roi"]["n"] == 12
 
 
+def test_cache_hits_by_bit_pattern_newest_first(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(5)
+    maps = [rng.uniform(1, 30, (6, 7)).astype(np.float32) for _ in range(5)]
+    maps[0][0, :3] = np.nan  # NaN GT values: bit-equal copies still hit the cache
+    est = maps[0] + 1.0
+    evaluator = Evaluator(criteria=("all", "depth"), cache_size=4)
+    built: list[int] = []
+    original = evaluator.reference
+
+    def counting(gt: np.ndarray, *args: object, **kwargs: object) -> object:
+        built.append(1)
+        return original(gt, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(evaluator, "reference", counting)
+    first = [evaluator.score(gt, est).sums for gt in maps[:4]]
+    assert len(built) == 4
+    again = [evaluator.score(gt.copy(), est).sums for gt in maps[:4]]  # equal content, new objects
+    assert len(built) == 4
+    for a, b in zip(first, again, strict=True):
+        np.testing.assert_array_equal(a, b)
+    # maps[0] was used last-but-three: a fifth map evicts the least recently used (maps[1])
+    evaluator.score(maps[0], est)
+    evaluator.score(maps[4], est)
+    assert len(built) == 5
+    evaluator.score(maps[0], est)
+    assert len(built) == 5
+    evaluator.score(maps[1], est)
+    assert len(built) == 6
+    # -0.0 differs from 0.0 in bits only: a rebuilt reference with the same scores
+    zeros = maps[2].copy()
+    zeros[1, :] = 0.0
+    plus = evaluator.score(zeros, est).sums
+    minus = evaluator.score(np.where(zeros == 0, np.float32(-0.0), zeros), est).sums
+    np.testing.assert_array_equal(plus, minus)
+
+
 # ------------------------------------------------------------------------------------ errors
 
 
