@@ -6,7 +6,7 @@ are identical to moocore's fronts. Run (``moocore`` comes with the ``test`` extr
     python bench/bench_models.py [--methods N] [--repeat R]
 
 Inputs mimic a parameter sweep: every method has a latent quality and each objective is that
-quality plus noise, rounded to 0.1 (percentages as printed): correlated objectives with many
+quality plus noise, rounded to whole numbers (as tables print them): correlated objectives with many
 ties and duplicate rows. M = 2, 12 and 50 objectives; then the front reduction of a front of
 about 7 000 methods (two anti-correlated objective groups). The process is pinned to one core.
 """
@@ -36,11 +36,11 @@ def timed(function: Callable[[], object], repeat: int) -> float:
 
 
 def sweep_objectives(methods: int, objectives: int, seed: int = 0) -> np.ndarray:
-    """Correlated objectives with many ties: latent quality + noise, rounded to 0.1."""
+    """Correlated objectives with many ties: latent quality + noise, rounded to whole numbers."""
     rng = np.random.default_rng(seed)
     quality = rng.gamma(2.0, 5.0, size=(methods, 1))
-    noise = rng.normal(0.0, 1.5, size=(methods, objectives))
-    return np.round(quality + noise, 1)
+    noise = rng.normal(0.0, 0.7, size=(methods, objectives))
+    return np.round(quality + noise)
 
 
 def wide_front(methods: int, objectives: int = 12, seed: int = 1) -> np.ndarray:
@@ -64,7 +64,7 @@ def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     print(f"dispeval_ros models benchmark (one core; median of {args.repeat} calls)")
-    print(f"\nA* Groups, N = {args.methods} methods, correlated objectives rounded to 0.1")
+    print(f"\nA* Groups, N = {args.methods} methods, correlated objectives, rounded")
     for objectives in (2, 12, 50):
         matrix = sweep_objectives(args.methods, objectives)
         ours = astar_groups(matrix)

@@ -482,3 +482,12 @@ def test_sweep_scale_groups_match_brute_force() -> None:
         matrix = np.round(quality + rng.normal(0.0, 0.8, size=(300, objectives)), 0)
         matrix[rng.random(matrix.shape) < 0.02] = np.nan
         assert astar_groups(matrix).tolist() == _brute_groups(matrix)
+
+
+def test_long_chains_and_many_groups() -> None:
+    """More groups than the sorter's storage foresees at first (it grows)."""
+    chain = np.arange(400, dtype=float)[::-1, None] * np.ones((1, 3))
+    assert astar_groups(chain).tolist() == list(range(400, 0, -1))
+    assert pareto_front(chain).tolist() == [False] * 399 + [True]
+    pairs = np.column_stack([np.arange(300.0), np.arange(300.0)[::-1] % 7])
+    assert astar_groups(pairs).tolist() == _brute_groups(pairs)
