@@ -611,6 +611,20 @@ def test_visibility_left_right_check_with_right_gt() -> None:
     assert both.counts()["occluded"] == 0
 
 
+def test_left_right_check_rounds_like_c_and_rejects_unknown_right_values() -> None:
+    """MiddEval3's computemask: C ``round`` (x − d = −0.5 → −1) and unknown right GT mismatches.
+
+    x=0, d=0.5: −0.5 rounds to −1, outside (rounding half up would land on right[0] = 0.5
+    and agree). x=1, d=2: −1, outside. x=2, d=1: right[1] = 0 is unknown (as 0 it would
+    agree within 1). x=3, d=1.5: 1.5 rounds to 2, right[2] = 2 agrees. x=4, d=1: right[3]
+    is inf, unknown. x=5, d=1: right[4] is NaN, unknown.
+    """
+    gt = np.array([[0.5, 2.0, 1.0, 1.5, 1.0, 1.0]], np.float32)
+    right = np.array([[0.5, 0.0, 2.0, np.inf, np.nan, 1.0]], np.float32)
+    partition = Evaluator(criteria=("visibility",)).reference(gt, gt_right=right).partition
+    np.testing.assert_array_equal(partition.mask("occluded"), [[1, 1, 1, 0, 1, 1]])
+
+
 def test_visibility_zbuffer_and_discontinuities_by_hand() -> None:
     # two identical rows, 14 columns, boundary width 3:
     #   d:       2 2 2 2 2 2 6 6 2 2 2  2  2  .(0)

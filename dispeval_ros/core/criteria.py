@@ -94,24 +94,21 @@ def occlusion(
     """Occluded valid points and where that knowledge came from.
 
     In order of preference: an official non-occlusion mask, a left-right check against the
-    right-view GT (``|D_L(x,y) − D_R(x − D_L, y)| > 1`` or the target outside the image), or
-    z-buffer forward warping of the left GT alone.
+    right-view GT as MiddEval3's ``computemask`` does it (``|D_L(x,y) − D_R(t, y)| > 1`` with
+    ``t = round(x − D_L)`` rounding halves away from zero, the target outside the image, or an
+    unknown right-view value), or z-buffer forward warping of the left GT alone.
     """
     if nonocc is not None:
         _check_shape("the 'nonocc' mask", nonocc, gt)
         return valid & ~nonocc.astype(bool, copy=False), "official mask"
     if gt_right is not None:
         _check_shape("the right-view ground truth", gt_right, gt)
-        height, width = gt.shape
-        columns = np.arange(width, dtype=np.float64)[None, :]
-        safe = np.where(valid, gt, 0.0)
-        target = np.floor(columns - safe + 0.5).astype(np.int64)
-        inside = (target >= 0) & (target < width)
-        rows = np.broadcast_to(np.arange(height)[:, None], gt.shape)
-        right = gt_right[rows, np.clip(target, 0, width - 1)].astype(np.float64)
-        right = np.where(np.isfinite(right), right, 0.0)
-        mismatch = np.abs(safe - right) > 1.0
-        return valid & (~inside | mismatch), "right-view GT"
+        occluded = kernels.left_right_occlusion(
+            np.ascontiguousarray(gt, dtype=np.float32),
+            np.ascontiguousarray(gt_right, dtype=np.float32),
+            np.ascontiguousarray(valid, dtype=np.bool_),
+        )
+        return occluded, "right-view GT"
     gt32 = np.ascontiguousarray(gt, dtype=np.float32)
     return kernels.forward_warp_occlusion(gt32, valid, float(tolerance)), "left GT z-buffer"
 
@@ -148,9 +145,10 @@ def visibility_set(
         source += ", official disc mask"
     else:
         near_jump = discontinuities(gt, valid, gap, width)
-    labels = np.full(gt.shape, 2, np.int32)
-    labels[near_jump] = 1
-    labels[occluded] = 0
+    labels = kernels.visibility_labels(
+        np.ascontiguousarray(occluded, dtype=np.bool_),
+        np.ascontiguousarray(near_jump, dtype=np.bool_),
+    )
     return _partitioning("visibility", labels, VISIBILITY, source)
 
 
@@ -163,15 +161,18 @@ def kmeans_thresholds(
     optimal within-cluster error from range-based starting points), so it starts from the
     global optimum over a fine histogram (every pair of cuts at bin edges, exact bin
     moments) and then iterates on the exact values until the centroids no longer change.
-    A value equal to a threshold goes to the lower (farther) cluster.
+    Each step sums whole bins from their moments and splits value by value only the bins a
+    threshold falls in. A value equal to a threshold goes to the lower (farther) cluster.
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     gt = np.ascontiguousarray(gt)
     lo, hi = kernels.valid_range(gt, valid)
-    counts, sums, squares = kernels.histogram_moments(gt, valid, lo, hi, _KMEANS_BINS)
-    occupied = counts > 0
-    counts, sums, squares = counts[occupied], sums[occupied], squares[occupied]
+    bin_counts, bin_sums, bin_squares, starts, binned = kernels.histogram_moments(
+        gt, np.ascontiguousarray(valid, dtype=np.bool_), lo, hi, _KMEANS_BINS
+    )
+    occupied = bin_counts > 0
+    counts, sums, squares = bin_counts[occupied], bin_sums[occupied], bin_squares[occupied]
     if counts.size >= 3:
         i, j = kernels.best_three_split(counts, sums, squares)
         centroids = np.array(
@@ -185,7 +186,9 @@ def kmeans_thresholds(
         centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
     for _ in range(max_iterations):
         low, high = _midpoints(centroids)
-        cluster_counts, cluster_sums = kernels.kmeans_1d_pass(gt, valid, low, high)
+        cluster_counts, cluster_sums = kernels.kmeans_binned_pass(
+            bin_sums, starts, binned, lo, hi, low, high
+        )
         updated = np.where(
             cluster_counts > 0, cluster_sums / np.maximum(cluster_counts, 1.0), centroids
         )

@@ -290,33 +290,6 @@ def forward_warp_occlusion(
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def kmeans_1d_pass(
-    values: np.ndarray, valid: np.ndarray, low: float, high: float
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """One Lloyd step of 3-means on 1-D values: counts and sums of the three clusters.
-
-    Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
-    """
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
-    n0 = n1 = n2 = 0.0
-    s0 = s1 = s2 = 0.0
-    for i in range(flat_values.shape[0]):
-        v = np.float64(flat_values[i]) if flat_valid[i] else 0.0
-        w = 1.0 if flat_valid[i] else 0.0
-        in0 = w if v <= low else 0.0
-        in2 = w if v > high else 0.0
-        in1 = w - in0 - in2
-        n0 += in0
-        n1 += in1
-        n2 += in2
-        s0 += in0 * v
-        s1 += in1 * v
-        s2 += in2 * v
-    return np.array([n0, n1, n2]), np.array([s0, s1, s2])
-
-
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def valid_range(values: np.ndarray, valid: np.ndarray) -> tuple[float, float]:  # pragma: no cover
     """Smallest and largest of the valid values."""
     flat_values = values.ravel()
@@ -383,41 +356,137 @@ def best_three_split(
 @njit(cache=True, nogil=True)
 def histogram_moments(
     values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Counts, sums and sums of squares of the valid values in ``bins`` equal bins."""
-    # Neighbouring pixels usually fall in the same bin: a run of one bin is summed in
-    # registers and added once, instead of chaining every update through memory.
-    counts = np.zeros(bins, dtype=np.float64)
-    sums = np.zeros(bins, dtype=np.float64)
-    squares = np.zeros(bins, dtype=np.float64)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Counts, sums and sums of squares of the valid values in ``bins`` equal bins.
+
+    Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
+    pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
+    """
     flat_values = values.ravel()
     flat_valid = valid.ravel()
+    n = flat_values.shape[0]
     scale = bins / (hi - lo) if hi > lo else 0.0
-    current = -1
-    run_count = 0.0
-    run_sum = 0.0
-    run_squares = 0.0
-    for i in range(flat_values.shape[0]):
-        if flat_valid[i]:
-            v = np.float64(flat_values[i])
-            b = min(int((v - lo) * scale), bins - 1)
-            if b != current:
-                if current >= 0:
-                    counts[current] += run_count
-                    sums[current] += run_sum
-                    squares[current] += run_squares
-                current = b
-                run_count = 0.0
-                run_sum = 0.0
-                run_squares = 0.0
-            run_count += 1.0
-            run_sum += v
-            run_squares += v * v
-    if current >= 0:
-        counts[current] += run_count
-        sums[current] += run_sum
-        squares[current] += run_squares
-    return counts, sums, squares
+    bin_of = np.empty(n, dtype=np.int32)
+    for i in range(n):  # branch-free: invalid pixels get bin `bins` (a spill bin, dropped)
+        v = np.float64(flat_values[i]) if flat_valid[i] else lo
+        b = min(int((v - lo) * scale), bins - 1)
+        bin_of[i] = b if flat_valid[i] else bins
+    counts = np.zeros(bins + 1, dtype=np.int64)
+    for i in range(n):
+        counts[bin_of[i]] += 1
+    starts = np.zeros(bins + 1, dtype=np.int64)
+    for b in range(bins):
+        starts[b + 1] = starts[b] + counts[b]
+    binned = np.empty(starts[bins], dtype=np.float64)
+    position = starts[:bins].copy()
+    for i in range(n):
+        b = bin_of[i]
+        if b < bins:
+            binned[position[b]] = flat_values[i]
+            position[b] += 1
+    sums = np.zeros(bins, dtype=np.float64)
+    squares = np.zeros(bins, dtype=np.float64)
+    for b in range(bins):  # in pixel order within each bin, as one pass would sum them
+        s = 0.0
+        q = 0.0
+        for k in range(starts[b], starts[b + 1]):
+            v = binned[k]
+            s += v
+            q += v * v
+        sums[b] = s
+        squares[b] = q
+    return counts[:bins].astype(np.float64), sums, squares, starts, binned
+
+
+@njit(cache=True, nogil=True)
+def kmeans_binned_pass(
+    sums: np.ndarray,
+    starts: np.ndarray,
+    binned: np.ndarray,
+    lo: float,
+    hi: float,
+    low: float,
+    high: float,
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """One Lloyd step of 1-D 3-means from :func:`histogram_moments`: cluster counts and sums.
+
+    Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
+    Binning is monotonic, so a bin below the one holding a threshold lies wholly below it and
+    a bin above wholly above: whole bins add their moments, only the (at most two) bins
+    holding a threshold are split value by value.
+    """
+    bins = sums.shape[0]
+    scale = bins / (hi - lo) if hi > lo else 0.0
+    cut_low = _bin_of(low, lo, hi, scale, bins)
+    cut_high = _bin_of(high, lo, hi, scale, bins)
+    counts3 = np.zeros(3)
+    sums3 = np.zeros(3)
+    for b in range(bins):
+        if (b == cut_low) | (b == cut_high):
+            for k in range(starts[b], starts[b + 1]):
+                v = binned[k]
+                cluster = 0 if v <= low else (1 if v <= high else 2)
+                counts3[cluster] += 1.0
+                sums3[cluster] += v
+        else:
+            cluster = 0 if b < cut_low else (1 if b < cut_high else 2)
+            counts3[cluster] += starts[b + 1] - starts[b]
+            sums3[cluster] += sums[b]
+    return counts3, sums3
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bin_of(value: float, lo: float, hi: float, scale: float, bins: int) -> int:  # pragma: no cover
+    """The bin :func:`histogram_moments` gives ``value``; -1 below ``lo``, ``bins`` above ``hi``."""
+    if value < lo:
+        return -1
+    if value > hi:
+        return bins
+    return min(int((value - lo) * scale), bins - 1)
+
+
+@njit(cache=True, nogil=True)
+def left_right_occlusion(
+    gt: np.ndarray, gt_right: np.ndarray, valid: np.ndarray
+) -> np.ndarray:  # pragma: no cover - compiled
+    """Left-right check against the right-view GT, as MiddEval3's ``computemask`` does it.
+
+    A valid point ``(x, y)`` is occluded when ``t = round(x − d)`` (C ``round``: halves away
+    from zero, so −0.5 → −1) is outside the image, the right GT at ``(t, y)`` is unknown
+    (not finite or ``<= 0``), or ``|d − D_R(t, y)| > 1``.
+    """
+    height, width = gt.shape
+    occluded = np.zeros((height, width), dtype=np.bool_)
+    for y in range(height):
+        for x in range(width):
+            if not valid[y, x]:
+                continue
+            d = np.float64(gt[y, x])
+            shift = x - d
+            rounded = np.floor(abs(shift) + 0.5)
+            target = int(rounded) if shift >= 0.0 else -int(rounded)
+            if target < 0 or target >= width:
+                occluded[y, x] = True
+                continue
+            seen = np.float64(gt_right[y, target])
+            known = (seen > 0.0) & (seen < np.inf)
+            occluded[y, x] = (not known) or abs(d - seen) > 1.0
+    return occluded
+
+
+@njit(cache=True, nogil=True)
+def visibility_labels(
+    occluded: np.ndarray, near_jump: np.ndarray
+) -> np.ndarray:  # pragma: no cover
+    """Class per pixel: 0 occluded, else 1 near a jump (boundary), else 2 (interior)."""
+    labels = np.empty(occluded.shape, dtype=np.int32)
+    flat_labels = labels.ravel()
+    flat_occluded = occluded.ravel()
+    flat_jump = near_jump.ravel()
+    for i in range(flat_labels.shape[0]):
+        jump = np.int32(1) if flat_jump[i] else np.int32(0)
+        flat_labels[i] = 0 if flat_occluded[i] else 2 - jump
+    return labels
 
 
 @njit(cache=True, nogil=True)
