@@ -26,7 +26,10 @@ from dispeval_ros.testbed import default_methods, make_driving_sequence
 
 CRITERIA = ("all", "visibility", "depth")
 MEASURES = ("bmp", "mae", "mse", "mre", "sze", "bmpre", "d1", "density")
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(
+    os.environ.get("DISPEVAL_DATA")
+    or Path(__file__).resolve().parents[1].parent / "shared" / "data"
+)
 
 
 def timed(function: Callable[[], object], repeat: int) -> float:

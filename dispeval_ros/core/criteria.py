@@ -344,7 +344,6 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             kernels.add_labels(cells, np.ascontiguousarray(criterion_set.labels), stride)
         stride *= criterion_set.classes
     n_cells = stride
-    kernels.clear_invalid(cells, valid, NOT_EVALUATED)
     criteria: list[str] = []
     rows: list[np.ndarray] = []
     overlapping: list[str] = []
@@ -365,7 +364,9 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             rows.append(row)
             if criterion_set.overlapping:
                 overlapping.append(name)
-    order, offsets = kernels.counting_order(cells, n_cells)
+    order, offsets = kernels.counting_order(
+        cells, np.ascontiguousarray(valid, dtype=np.bool_), n_cells
+    )
     return Partition(
         cells=cells,
         criteria=tuple(criteria),

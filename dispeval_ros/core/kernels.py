@@ -233,26 +233,36 @@ def accumulate_cells(
 
 @njit(cache=True, nogil=True)
 def counting_order(
-    cells: np.ndarray, n_cells: int
+    cells: np.ndarray, valid: np.ndarray, n_cells: int
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
-    """Stable counting sort of pixel indices by cell (cell < 0: not evaluated)."""
+    """Mark invalid pixels ``-1`` in ``cells`` (in place), then sort pixel indices by cell.
+
+    A stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s pixels.
+    """
     flat = cells.ravel()
-    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: see histogram_moments
+    flat_valid = valid.ravel()
+    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: no chained increments
     for i in range(flat.shape[0]):
-        c = flat[i]
-        if c >= 0:
-            lanes[i & 3, c + 1] += 1
-    counts = lanes.sum(axis=0)
+        c = flat[i] if flat_valid[i] else -1
+        flat[i] = c
+        lanes[i & 3, c + 1] += 1
+    offsets = np.zeros(n_cells + 1, dtype=np.int64)
     for c in range(n_cells):
-        counts[c + 1] += counts[c]
-    offsets = counts.copy()
-    order = np.empty(counts[n_cells], dtype=np.int32)
-    position = counts[:n_cells].copy()
-    for i in range(flat.shape[0]):
+        offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
+        offsets[c + 1] += lanes[3, c + 1]
+    order = np.empty(offsets[n_cells], dtype=np.int32)
+    filled = offsets[:n_cells].copy()
+    current = 0
+    position = filled[0] if n_cells > 0 else 0
+    for i in range(flat.shape[0]):  # a run of one cell is placed from a register
         c = flat[i]
         if c >= 0:
-            order[position[c]] = i
-            position[c] += 1
+            if c != current:
+                filled[current] = position
+                current = c
+                position = filled[c]
+            order[position] = i
+            position += 1
     return order, offsets
 
 
@@ -362,40 +372,56 @@ def histogram_moments(
     Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
     pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
     """
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
-    n = flat_values.shape[0]
-    scale = bins / (hi - lo) if hi > lo else 0.0
-    bin_of = np.empty(n, dtype=np.int32)
-    for i in range(n):  # branch-free: invalid pixels get bin `bins` (a spill bin, dropped)
-        v = np.float64(flat_values[i]) if flat_valid[i] else lo
-        b = min(int((v - lo) * scale), bins - 1)
-        bin_of[i] = b if flat_valid[i] else bins
-    counts = np.zeros(bins + 1, dtype=np.int64)
-    for i in range(n):
-        counts[bin_of[i]] += 1
-    starts = np.zeros(bins + 1, dtype=np.int64)
-    for b in range(bins):
-        starts[b + 1] = starts[b] + counts[b]
-    binned = np.empty(starts[bins], dtype=np.float64)
-    position = starts[:bins].copy()
-    for i in range(n):
-        b = bin_of[i]
-        if b < bins:
-            binned[position[b]] = flat_values[i]
-            position[b] += 1
+    # Neighbouring pixels usually fall in the same bin: a run of one bin is summed (and
+    # placed) in registers and written once, instead of chaining every update through
+    # memory. An invalid pixel adds zero to the current run instead of branching.
+    counts = np.zeros(bins, dtype=np.float64)
     sums = np.zeros(bins, dtype=np.float64)
     squares = np.zeros(bins, dtype=np.float64)
-    for b in range(bins):  # in pixel order within each bin, as one pass would sum them
-        s = 0.0
-        q = 0.0
-        for k in range(starts[b], starts[b + 1]):
-            v = binned[k]
-            s += v
-            q += v * v
-        sums[b] = s
-        squares[b] = q
-    return counts[:bins].astype(np.float64), sums, squares, starts, binned
+    flat_values = values.ravel()
+    flat_valid = valid.ravel()
+    scale = bins / (hi - lo) if hi > lo else 0.0
+    current = 0
+    run_count = 0.0
+    run_sum = 0.0
+    run_squares = 0.0
+    for i in range(flat_values.shape[0]):
+        ok = flat_valid[i]
+        v = np.float64(flat_values[i]) if ok else lo
+        w = 1.0 if ok else 0.0
+        b = min(int((v - lo) * scale), bins - 1) if ok else current
+        if b != current:
+            counts[current] += run_count
+            sums[current] += run_sum
+            squares[current] += run_squares
+            current = b
+            run_count = 0.0
+            run_sum = 0.0
+            run_squares = 0.0
+        run_count += w
+        run_sum += w * v
+        run_squares += w * v * v
+    counts[current] += run_count
+    sums[current] += run_sum
+    squares[current] += run_squares
+    starts = np.zeros(bins + 1, dtype=np.int64)
+    for b in range(bins):
+        starts[b + 1] = starts[b] + np.int64(counts[b])
+    binned = np.empty(starts[bins], dtype=np.float64)
+    filled = starts[:bins].copy()
+    current = 0
+    position = filled[0]
+    for i in range(flat_values.shape[0]):
+        if flat_valid[i]:
+            v = np.float64(flat_values[i])
+            b = min(int((v - lo) * scale), bins - 1)
+            if b != current:
+                filled[current] = position
+                current = b
+                position = filled[b]
+            binned[position] = v
+            position += 1
+    return counts, sums, squares, starts, binned
 
 
 @njit(cache=True, nogil=True)
@@ -456,21 +482,18 @@ def left_right_occlusion(
     (not finite or ``<= 0``), or ``|d − D_R(t, y)| > 1``.
     """
     height, width = gt.shape
-    occluded = np.zeros((height, width), dtype=np.bool_)
+    occluded = np.empty((height, width), dtype=np.bool_)
     for y in range(height):
-        for x in range(width):
-            if not valid[y, x]:
-                continue
-            d = np.float64(gt[y, x])
+        for x in range(width):  # branch-free: every pixel does the same work
+            ok = valid[y, x]
+            d = np.float64(gt[y, x]) if ok else 0.0
             shift = x - d
-            rounded = np.floor(abs(shift) + 0.5)
-            target = int(rounded) if shift >= 0.0 else -int(rounded)
-            if target < 0 or target >= width:
-                occluded[y, x] = True
-                continue
-            seen = np.float64(gt_right[y, target])
-            known = (seen > 0.0) & (seen < np.inf)
-            occluded[y, x] = (not known) or abs(d - seen) > 1.0
+            rounded = int(np.floor(abs(shift) + 0.5))
+            target = rounded if shift >= 0.0 else -rounded
+            inside = (target >= 0) & (target < width)
+            seen = np.float64(gt_right[y, min(max(target, 0), width - 1)])
+            agree = (seen > 0.0) & (seen < np.inf) & (abs(d - seen) <= 1.0)
+            occluded[y, x] = ok and not (inside and agree)
     return occluded
 
 
@@ -515,13 +538,3 @@ def add_labels(cells: np.ndarray, labels: np.ndarray, stride: int) -> None:  # p
     flat_labels = labels.ravel()
     for i in range(flat_cells.shape[0]):
         flat_cells[i] += flat_labels[i] * stride
-
-
-@njit(cache=True, nogil=True)
-def clear_invalid(cells: np.ndarray, valid: np.ndarray, value: int) -> None:  # pragma: no cover
-    """``cells[~valid] = value`` in place."""
-    flat_cells = cells.ravel()
-    flat_valid = valid.ravel()
-    for i in range(flat_cells.shape[0]):
-        if not flat_valid[i]:
-            flat_cells[i] = value
