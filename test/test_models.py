@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from dispeval_ros.core import dominance
 from dispeval_ros.core.models import (
     ModelResult,
     Reduction,
@@ -457,18 +458,26 @@ def objective_matrices(draw: st.DrawFn) -> np.ndarray:
     return pool[picks]
 
 
-@settings(max_examples=400, deadline=None)
-@given(objective_matrices())
-def test_groups_match_brute_force_peeling(matrix: np.ndarray) -> None:
+@pytest.mark.parametrize("small_problem", [dominance.SMALL_PROBLEM, 0])
+@settings(max_examples=300, deadline=None)
+@given(matrix=objective_matrices())
+def test_groups_match_brute_force_peeling(matrix: np.ndarray, small_problem: int) -> None:
+    """Both paths: the dominance table for few methods and the compiled sorting (forced)."""
     expected = _brute_groups(matrix)
-    assert astar_groups(matrix).tolist() == expected
-    assert pareto_front(matrix).tolist() == [g == 1 for g in expected]
-    names = [f"m{i}" for i in range(len(matrix))]
-    result = evaluate_models(names, matrix)
-    assert list(result.groups.values()) == expected
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(dominance, "SMALL_PROBLEM", small_problem)
+        assert astar_groups(matrix).tolist() == expected
+        assert pareto_front(matrix).tolist() == [g == 1 for g in expected]
+        names = [f"m{i}" for i in range(len(matrix))]
+        result = evaluate_models(names, matrix)
+        assert list(result.groups.values()) == expected
 
 
-def test_signed_zero_and_duplicates_tie() -> None:
+@pytest.mark.parametrize("small_problem", [dominance.SMALL_PROBLEM, 0])
+def test_signed_zero_and_duplicates_tie(
+    monkeypatch: pytest.MonkeyPatch, small_problem: int
+) -> None:
+    monkeypatch.setattr(dominance, "SMALL_PROBLEM", small_problem)
     matrix = [[0.0, 1.0, 2.0], [-0.0, 1.0, 2.0], [0.0, 1.0, 2.0], [0.0, 1.0, 3.0]]
     assert astar_groups(matrix).tolist() == [1, 1, 1, 2]
     assert astar_groups([[-0.0, 1.0], [0.0, 1.0], [0.0, 0.5]]).tolist() == [2, 2, 1]

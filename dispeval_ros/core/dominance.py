@@ -13,14 +13,19 @@ fronts found so far, in an order where a dominator always comes first:
   block is skipped when the method is better than all its members on some objective;
   otherwise members are compared with an early exit.
 
-The compiled functions are only compiled when a model is first evaluated (numba compiles
-lazily and caches on disk).
+The compiled functions are only compiled when a model is first evaluated with more than
+:data:`SMALL_PROBLEM` methods (numba compiles lazily and caches on disk); fewer methods, the
+common case of a handful of stereo methods, use the dominance table directly and need no
+compilation at all.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+# Up to this many methods a methods × methods dominance table is cheaper than compiling.
+SMALL_PROBLEM = 32
 
 # Members of a front are kept in blocks of this many rows (their ranks copied contiguously),
 # each with its per-objective minimum: a block none of whose members can dominate a method is
@@ -100,6 +105,27 @@ def _dominated_by_front(
                         return True
         b = next_block[b]
     return False
+
+
+def fronts_small(ranks: np.ndarray, first_only: bool) -> np.ndarray:
+    """Front numbers of a few rows from their dominance table (peeled by dominator counts)."""
+    n = ranks.shape[0]
+    weakly = np.all(ranks[:, None, :] <= ranks[None, :, :], axis=2)
+    dominance = weakly & ~weakly.T
+    dominators = dominance.sum(axis=0)
+    result = np.zeros(n, dtype=np.int64)
+    remaining = np.ones(n, dtype=np.bool_)
+    front = 0
+    while remaining.any():  # a strict partial order: a non-empty set always has a front
+        front += 1
+        members = remaining & (dominators == 0)
+        result[members] = front
+        remaining &= ~members
+        if first_only:
+            result[remaining] = 2
+            break
+        dominators = dominators - dominance[members].sum(axis=0)
+    return result
 
 
 def fronts_by_sum(ranks: np.ndarray, first_only: bool) -> np.ndarray:

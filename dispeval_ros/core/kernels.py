@@ -81,7 +81,8 @@ def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
             fill = out[gap_start - 1]  # trailing gap: the last valid value
         else:
             fill = min(out[gap_start - 1], out[x])  # the farther neighbour
-        out[gap_start:x] = -fill
+        for k in range(gap_start, x):  # a loop, not a slice assignment: much less to compile
+            out[k] = -fill
 
 
 @njit(cache=True, nogil=True)
@@ -108,10 +109,12 @@ def normalise_estimate(
             _fill_row_gaps(out[y])
     if policy != POLICY_INTERPOLATE or first_row < 0:
         return
-    for y in range(first_row):  # rows above the first row with any valid value copy it
-        out[y, :] = -np.abs(out[first_row])
-    for y in range(last_row + 1, height):  # rows below the last one likewise
-        out[y, :] = -np.abs(out[last_row])
+    for y in range(height):  # rows above the first row with any valid value copy it,
+        source = first_row if y < first_row else last_row  # rows below the last one likewise
+        if first_row <= y <= last_row:
+            continue
+        for x in range(width):
+            out[y, x] = -abs(out[source, x])
 
 
 MAX_THRESHOLDS = 8

@@ -127,6 +127,8 @@ def _fronts(dense: npt.NDArray[np.int32], first_only: bool) -> IntArray:
     if m == 1:
         column = dense[:, 0].astype(np.int_) + 1
         return np.minimum(column, 2) if first_only else column
+    if n <= dominance.SMALL_PROBLEM:
+        return dominance.fronts_small(dense, first_only).astype(np.int_)
     if m == 2:
         first = np.ascontiguousarray(dense[:, 0])
         second = np.ascontiguousarray(dense[:, 1])
