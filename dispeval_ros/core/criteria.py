@@ -78,6 +78,11 @@ def _size(array: np.ndarray) -> str:
     return "×".join(str(n) for n in array.shape)
 
 
+def _flat(array: np.ndarray, dtype: type | None = None) -> np.ndarray:
+    """A contiguous 1-D view (a copy only if needed): kernels loop over flat arrays."""
+    return np.ascontiguousarray(array, dtype=dtype).reshape(-1)
+
+
 def all_set(valid: np.ndarray) -> CriterionSet:
     """The single criterion ``all``: every valid point."""
     return _partitioning("all", np.zeros(valid.shape, np.int32), ("all",), "valid GT")
@@ -145,9 +150,9 @@ def visibility_set(
         source += ", official disc mask"
     else:
         near_jump = discontinuities(gt, valid, gap, width)
-    labels = kernels.visibility_labels(
-        np.ascontiguousarray(occluded, dtype=np.bool_),
-        np.ascontiguousarray(near_jump, dtype=np.bool_),
+    labels = np.empty(gt.shape, np.int32)
+    kernels.visibility_labels(
+        _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
     )
     return _partitioning("visibility", labels, VISIBILITY, source)
 
@@ -166,10 +171,11 @@ def kmeans_thresholds(
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
-    gt = np.ascontiguousarray(gt)
-    lo, hi = kernels.valid_range(gt, valid)
+    values = _flat(gt)
+    flat_valid = _flat(valid, np.bool_)
+    lo, hi = kernels.valid_range(values, flat_valid)
     bin_counts, bin_sums, bin_squares, starts, binned = kernels.histogram_moments(
-        gt, np.ascontiguousarray(valid, dtype=np.bool_), lo, hi, _KMEANS_BINS
+        values, flat_valid, lo, hi, _KMEANS_BINS
     )
     occupied = bin_counts > 0
     counts, sums, squares = bin_counts[occupied], bin_sums[occupied], bin_squares[occupied]
@@ -220,7 +226,8 @@ def depth_set(
     """
     if ranges is None:
         low, high = kmeans_thresholds(gt, valid)
-        labels = kernels.threshold_labels(np.ascontiguousarray(gt), low, high)
+        labels = np.empty(gt.shape, np.int32)
+        kernels.threshold_labels(_flat(gt), low, high, labels.reshape(-1))
         return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
     if camera is None:
         raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")
@@ -341,7 +348,7 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            kernels.add_labels(cells, np.ascontiguousarray(criterion_set.labels), stride)
+            kernels.add_labels(cells.reshape(-1), _flat(criterion_set.labels, np.int32), stride)
         stride *= criterion_set.classes
     n_cells = stride
     criteria: list[str] = []
@@ -364,9 +371,7 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             rows.append(row)
             if criterion_set.overlapping:
                 overlapping.append(name)
-    order, offsets = kernels.counting_order(
-        cells, np.ascontiguousarray(valid, dtype=np.bool_), n_cells
-    )
+    order, offsets = kernels.counting_order(cells.reshape(-1), _flat(valid, np.bool_), n_cells)
     return Partition(
         cells=cells,
         criteria=tuple(criteria),

@@ -236,14 +236,12 @@ def accumulate_cells(
 
 @njit(cache=True, nogil=True)
 def counting_order(
-    cells: np.ndarray, valid: np.ndarray, n_cells: int
+    flat: np.ndarray, flat_valid: np.ndarray, n_cells: int
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
-    """Mark invalid pixels ``-1`` in ``cells`` (in place), then sort pixel indices by cell.
+    """Mark invalid pixels ``-1`` in the flat cell image (in place), then sort pixels by cell.
 
     A stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s pixels.
     """
-    flat = cells.ravel()
-    flat_valid = valid.ravel()
     lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: no chained increments
     for i in range(flat.shape[0]):
         c = flat[i] if flat_valid[i] else -1
@@ -254,7 +252,9 @@ def counting_order(
         offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
         offsets[c + 1] += lanes[3, c + 1]
     order = np.empty(offsets[n_cells], dtype=np.int32)
-    filled = offsets[:n_cells].copy()
+    filled = np.empty(n_cells + 1, dtype=np.int64)  # loops, not array methods: less to compile
+    for c in range(n_cells + 1):
+        filled[c] = offsets[c]
     current = 0
     position = filled[0] if n_cells > 0 else 0
     for i in range(flat.shape[0]):  # a run of one cell is placed from a register
@@ -284,7 +284,8 @@ def forward_warp_occlusion(
     zbuffer = np.empty(width, dtype=np.float64)
     targets = np.empty(width, dtype=np.int64)  # -1: not valid, -2: lands outside the image
     for y in range(height):
-        zbuffer[:] = -np.inf
+        for x in range(width):
+            zbuffer[x] = -np.inf
         for x in range(width):
             target = -1
             if valid[y, x]:
@@ -303,10 +304,10 @@ def forward_warp_occlusion(
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def valid_range(values: np.ndarray, valid: np.ndarray) -> tuple[float, float]:  # pragma: no cover
-    """Smallest and largest of the valid values."""
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
+def valid_range(
+    flat_values: np.ndarray, flat_valid: np.ndarray
+) -> tuple[float, float]:  # pragma: no cover
+    """Smallest and largest of the valid values (flat arrays)."""
     lo = np.inf
     hi = -np.inf
     for i in range(flat_values.shape[0]):
@@ -317,15 +318,13 @@ def valid_range(values: np.ndarray, valid: np.ndarray) -> tuple[float, float]:  
 
 
 @njit(cache=True, nogil=True)
-def threshold_labels(values: np.ndarray, low: float, high: float) -> np.ndarray:  # pragma: no cover
+def threshold_labels(
+    flat_values: np.ndarray, low: float, high: float, flat_labels: np.ndarray
+) -> None:  # pragma: no cover
     """Class 0 above ``high``, 1 in ``(low, high]``, 2 otherwise (near / mid / far)."""
-    labels = np.empty(values.shape, dtype=np.int32)
-    flat_values = values.ravel()
-    flat_labels = labels.ravel()
     for i in range(flat_values.shape[0]):
         v = flat_values[i]
         flat_labels[i] = 0 if v > high else (1 if v > low else 2)
-    return labels
 
 
 @njit(cache=True, nogil=True)
@@ -368,9 +367,9 @@ def best_three_split(
 
 @njit(cache=True, nogil=True)
 def histogram_moments(
-    values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
+    flat_values: np.ndarray, flat_valid: np.ndarray, lo: float, hi: float, bins: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
-    """Counts, sums and sums of squares of the valid values in ``bins`` equal bins.
+    """Counts, sums and sums of squares of the valid values (flat arrays) in ``bins`` equal bins.
 
     Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
     pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
@@ -381,8 +380,6 @@ def histogram_moments(
     counts = np.zeros(bins, dtype=np.float64)
     sums = np.zeros(bins, dtype=np.float64)
     squares = np.zeros(bins, dtype=np.float64)
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
     scale = bins / (hi - lo) if hi > lo else 0.0
     current = 0
     run_count = 0.0
@@ -411,7 +408,9 @@ def histogram_moments(
     for b in range(bins):
         starts[b + 1] = starts[b] + np.int64(counts[b])
     binned = np.empty(starts[bins], dtype=np.float64)
-    filled = starts[:bins].copy()
+    filled = np.empty(bins + 1, dtype=np.int64)
+    for b in range(bins + 1):
+        filled[b] = starts[b]
     current = 0
     position = filled[0]
     for i in range(flat_values.shape[0]):
@@ -502,17 +501,11 @@ def left_right_occlusion(
 
 @njit(cache=True, nogil=True)
 def visibility_labels(
-    occluded: np.ndarray, near_jump: np.ndarray
-) -> np.ndarray:  # pragma: no cover
+    flat_occluded: np.ndarray, flat_jump: np.ndarray, flat_labels: np.ndarray
+) -> None:  # pragma: no cover
     """Class per pixel: 0 occluded, else 1 near a jump (boundary), else 2 (interior)."""
-    labels = np.empty(occluded.shape, dtype=np.int32)
-    flat_labels = labels.ravel()
-    flat_occluded = occluded.ravel()
-    flat_jump = near_jump.ravel()
     for i in range(flat_labels.shape[0]):
-        jump = np.int32(1) if flat_jump[i] else np.int32(0)
-        flat_labels[i] = 0 if flat_occluded[i] else 2 - jump
-    return labels
+        flat_labels[i] = 0 if flat_occluded[i] else (1 if flat_jump[i] else 2)
 
 
 @njit(cache=True, nogil=True)
@@ -535,9 +528,9 @@ def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # p
 
 
 @njit(cache=True, nogil=True)
-def add_labels(cells: np.ndarray, labels: np.ndarray, stride: int) -> None:  # pragma: no cover
-    """``cells += labels · stride`` in place (one pass, no temporary)."""
-    flat_cells = cells.ravel()
-    flat_labels = labels.ravel()
+def add_labels(
+    flat_cells: np.ndarray, flat_labels: np.ndarray, stride: int
+) -> None:  # pragma: no cover
+    """``cells += labels · stride`` in place on flat arrays (one pass, no temporary)."""
     for i in range(flat_cells.shape[0]):
         flat_cells[i] += flat_labels[i] * stride
