@@ -24,6 +24,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from dispeval_ros.jitcache import ensure_cache_location
+
+ensure_cache_location()  # before any kernel is decorated with cache=True
+
 # Up to this many methods a methods × methods dominance table is cheaper than compiling.
 SMALL_PROBLEM = 32
 

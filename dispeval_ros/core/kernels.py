@@ -12,6 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from dispeval_ros.jitcache import ensure_cache_location
+
+ensure_cache_location()  # before any kernel is decorated with cache=True
+
 # Floating-point flags that allow reassociation (vectorised reductions) but keep NaN/inf
 # semantics, so a stray non-finite value can never be optimised into a wrong comparison.
 _FAST = {"reassoc", "contract", "nsz", "arcp"}
