@@ -171,11 +171,8 @@ def kmeans_thresholds(
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
-    values = _flat(gt)
-    flat_valid = _flat(valid, np.bool_)
-    lo, hi = kernels.valid_range(values, flat_valid)
-    bin_counts, bin_sums, bin_squares, starts, binned = kernels.histogram_moments(
-        values, flat_valid, lo, hi, _KMEANS_BINS
+    lo, hi, bin_counts, bin_sums, bin_squares, starts, binned = kernels.histogram_moments(
+        _flat(gt), _flat(valid, np.bool_), _KMEANS_BINS
     )
     occupied = bin_counts > 0
     counts, sums, squares = bin_counts[occupied], bin_sums[occupied], bin_squares[occupied]

@@ -307,20 +307,6 @@ def forward_warp_occlusion(
     return occluded
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def valid_range(
-    flat_values: np.ndarray, flat_valid: np.ndarray
-) -> tuple[float, float]:  # pragma: no cover
-    """Smallest and largest of the valid values (flat arrays)."""
-    lo = np.inf
-    hi = -np.inf
-    for i in range(flat_values.shape[0]):
-        v = np.float64(flat_values[i])
-        lo = min(lo, v) if flat_valid[i] else lo
-        hi = max(hi, v) if flat_valid[i] else hi
-    return lo, hi
-
-
 @njit(cache=True, nogil=True)
 def threshold_labels(
     flat_values: np.ndarray, low: float, high: float, flat_labels: np.ndarray
@@ -371,63 +357,67 @@ def best_three_split(
 
 @njit(cache=True, nogil=True)
 def histogram_moments(
-    flat_values: np.ndarray, flat_valid: np.ndarray, lo: float, hi: float, bins: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
-    """Counts, sums and sums of squares of the valid values (flat arrays) in ``bins`` equal bins.
+    flat_values: np.ndarray, flat_valid: np.ndarray, bins: int
+) -> tuple[
+    float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]:  # pragma: no cover
+    """Range, then counts, sums and sums of squares of the valid values in ``bins`` equal bins.
 
     Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
     pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
+    One pass over every pixel (branch-free: the valid values are packed and the range taken
+    together); the rest runs over the valid values only, which on sparse GT are few.
     """
-    # Neighbouring pixels usually fall in the same bin: a run of one bin is summed (and
-    # placed) in registers and written once, instead of chaining every update through
-    # memory. An invalid pixel adds zero to the current run instead of branching.
-    counts = np.zeros(bins, dtype=np.float64)
-    sums = np.zeros(bins, dtype=np.float64)
-    squares = np.zeros(bins, dtype=np.float64)
-    scale = bins / (hi - lo) if hi > lo else 0.0
-    current = 0
-    run_count = 0.0
-    run_sum = 0.0
-    run_squares = 0.0
-    for i in range(flat_values.shape[0]):
+    n = flat_values.shape[0]
+    packed = np.empty(n, dtype=np.float64)
+    count = 0
+    lo = np.inf
+    hi = -np.inf
+    for i in range(n):
         ok = flat_valid[i]
-        v = np.float64(flat_values[i]) if ok else lo
-        w = 1.0 if ok else 0.0
-        b = min(int((v - lo) * scale), bins - 1) if ok else current
-        if b != current:
-            counts[current] += run_count
-            sums[current] += run_sum
-            squares[current] += run_squares
-            current = b
-            run_count = 0.0
-            run_sum = 0.0
-            run_squares = 0.0
-        run_count += w
-        run_sum += w * v
-        run_squares += w * v * v
-    counts[current] += run_count
-    sums[current] += run_sum
-    squares[current] += run_squares
+        v = np.float64(flat_values[i])
+        packed[count] = v  # overwritten by the next value unless this one is valid
+        count += 1 if ok else 0
+        lo = min(lo, v if ok else np.inf)
+        hi = max(hi, v if ok else -np.inf)
+    scale = bins / (hi - lo) if hi > lo else 0.0
+    bin_of = np.empty(count, dtype=np.int32)
+    lanes = np.zeros((4, bins), dtype=np.int64)  # interleaved: no chained increments
+    for k in range(count):
+        b = min(int((packed[k] - lo) * scale), bins - 1)
+        bin_of[k] = b
+        lanes[k & 3, b] += 1
     starts = np.zeros(bins + 1, dtype=np.int64)
     for b in range(bins):
-        starts[b + 1] = starts[b] + np.int64(counts[b])
-    binned = np.empty(starts[bins], dtype=np.float64)
+        starts[b + 1] = starts[b] + lanes[0, b] + lanes[1, b] + lanes[2, b] + lanes[3, b]
+    binned = np.empty(count, dtype=np.float64)
     filled = np.empty(bins + 1, dtype=np.int64)
     for b in range(bins + 1):
         filled[b] = starts[b]
     current = 0
     position = filled[0]
-    for i in range(flat_values.shape[0]):
-        if flat_valid[i]:
-            v = np.float64(flat_values[i])
-            b = min(int((v - lo) * scale), bins - 1)
-            if b != current:
-                filled[current] = position
-                current = b
-                position = filled[b]
-            binned[position] = v
-            position += 1
-    return counts, sums, squares, starts, binned
+    for k in range(count):  # a run of one bin is placed from a register
+        b = bin_of[k]
+        if b != current:
+            filled[current] = position
+            current = b
+            position = filled[b]
+        binned[position] = packed[k]
+        position += 1
+    counts = np.empty(bins, dtype=np.float64)
+    sums = np.empty(bins, dtype=np.float64)
+    squares = np.empty(bins, dtype=np.float64)
+    for b in range(bins):
+        total = 0.0
+        total_squares = 0.0
+        for k in range(starts[b], starts[b + 1]):
+            v = binned[k]
+            total += v
+            total_squares += v * v
+        counts[b] = starts[b + 1] - starts[b]
+        sums[b] = total
+        squares[b] = total_squares
+    return lo, hi, counts, sums, squares, starts, binned
 
 
 @njit(cache=True, nogil=True)
