@@ -14,25 +14,11 @@ about 7 000 methods (two anti-correlated objective groups). The process is pinne
 from __future__ import annotations
 
 import argparse
-import os
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
+from bench_scoring import pin_to_one_core, timed
 
 from dispeval_ros.core.models import astar_groups, front_reduction, pareto_front
-
-
-def timed(function: Callable[[], object], repeat: int) -> float:
-    """Median wall time of ``function`` in milliseconds (after one warm-up call)."""
-    function()
-    samples = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        samples.append((time.perf_counter() - start) * 1e3)
-    return statistics.median(samples)
 
 
 def sweep_objectives(methods: int, objectives: int, seed: int = 0) -> np.ndarray:
@@ -61,8 +47,7 @@ def main() -> None:
     parser.add_argument("--methods", type=int, default=10_000, help="methods (rows), default 1e4")
     parser.add_argument("--repeat", type=int, default=5, help="timed calls per measurement")
     args = parser.parse_args()
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    pin_to_one_core()
     print(f"dispeval_ros models benchmark (one core; median of {args.repeat} calls)")
     print(f"\nA* Groups, N = {args.methods} methods, correlated objectives, rounded")
     for objectives in (2, 12, 50):

@@ -157,19 +157,29 @@ def bench_case(gt: np.ndarray, est: np.ndarray, camera: Camera, label: str, repe
     print(f"  largest relative difference fused vs baseline: {worst:.2e}")
 
 
+def pin_to_one_core() -> None:
+    """Run on one core (where the OS allows it): timings then do not depend on scheduling."""
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+
+
+def benchmark_frames() -> list[tuple[np.ndarray, np.ndarray, Camera, str]]:
+    """The benchmark scenes: synthetic 1242×375 and 1920×1080, the KITTI frame if present."""
+    cases = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
+    kitti = kitti_frame()
+    if kitti is not None:
+        cases.append(kitti)
+    return cases
+
+
 def main() -> None:
     """Run every case."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=40, help="timed calls per measurement")
     args = parser.parse_args()
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    pin_to_one_core()
     print("dispeval_ros scoring benchmark (one core; median of", args.repeat, "calls)")
-    cases = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
-    kitti = kitti_frame()
-    if kitti is not None:
-        cases.append(kitti)
-    for gt, est, camera, label in cases:
+    for gt, est, camera, label in benchmark_frames():
         bench_case(gt, est, camera, label, args.repeat)
 
 

@@ -1,16 +1,19 @@
 """The compiled partition build against the implementation it replaced, kept here as reference.
 
-The reference is the straightforward numpy build: 3-means by Lloyd on every exact value from
-the optimal split of a 512-bin histogram, visibility labels by masked assignment, cells as
-the sum of labels times strides and the order by a stable argsort. The compiled build must
-give the same partition (cells, order, offsets) and the same thresholds up to rounding in
-the sums, on random maps and on every real scene.
+The reference is the straightforward numpy build (also the baseline of
+``bench/bench_partition.py``): a z-buffer by ``np.maximum.at``, boundaries from array
+differences, 3-means by Lloyd on every exact value from the optimal split of a 512-bin
+histogram, cells from nested ``np.where`` and the order by a stable argsort. The compiled
+build must give the same partition (cells, order, offsets, GT in partition order) and the
+same thresholds up to rounding in the sums, on random maps and on every real scene.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -25,83 +28,120 @@ from dispeval_ros.io import load_scene
 BINS = 512
 
 
-def reference_thresholds(gt: np.ndarray, valid: np.ndarray) -> tuple[float, float]:
-    """Optimal 3-split of a 512-bin histogram, then Lloyd on every exact value (numpy)."""
-    values = gt[valid].astype(np.float64)
+def numpy_zbuffer(gt: np.ndarray, valid: np.ndarray, tolerance: float = 1.0) -> np.ndarray:
+    """Occluded points: landing outside the image or behind a nearer point (z-buffer)."""
+    height, width = gt.shape
+    ys, xs = np.nonzero(valid)
+    d = gt[ys, xs].astype(np.float64)
+    target = np.floor(xs - d + 0.5).astype(np.int64)
+    inside = (target >= 0) & (target < width)
+    flat = ys[inside] * width + target[inside]
+    zbuffer = np.full(height * width, -np.inf)
+    np.maximum.at(zbuffer, flat, d[inside])
+    hidden = np.zeros(xs.size, bool)
+    hidden[inside] = zbuffer[flat] > d[inside] + tolerance
+    occluded = np.zeros(gt.shape, bool)
+    occluded[ys, xs] = ~inside | hidden
+    return occluded
+
+
+def numpy_boundary(
+    gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, size: int = 9
+) -> np.ndarray:
+    """Points within a size × size square of a jump larger than ``gap`` between valid points."""
+    d = np.where(valid, gt, 0.0).astype(np.float32)
+    jump = np.zeros(gt.shape, np.uint8)
+    across = valid[:, 1:] & valid[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) > gap)
+    down = valid[1:] & valid[:-1] & (np.abs(d[1:] - d[:-1]) > gap)
+    jump[:, 1:] |= across
+    jump[:, :-1] |= across
+    jump[1:] |= down
+    jump[:-1] |= down
+    return cv2.dilate(jump, np.ones((size, size), np.uint8)).astype(bool)
+
+
+def numpy_thresholds(values: np.ndarray) -> tuple[float, float]:
+    """3-means of 1-D values: optimal split of a 512-bin histogram, then Lloyd on the values."""
     lo, hi = float(values.min()), float(values.max())
     scale = BINS / (hi - lo) if hi > lo else 0.0
     bins = np.minimum(((values - lo) * scale).astype(np.int64), BINS - 1)
-    counts = np.bincount(bins, minlength=BINS).astype(np.float64)
-    sums = np.bincount(bins, weights=values, minlength=BINS)
-    squares = np.bincount(bins, weights=values * values, minlength=BINS)
-    occupied = counts > 0
-    counts, sums, squares = counts[occupied], sums[occupied], squares[occupied]
-    n = counts.size
-    if n >= 3:
-        cw, cs, cq = (np.concatenate([[0.0], np.cumsum(a)]) for a in (counts, sums, squares))
+    weight = np.bincount(bins, minlength=BINS).astype(np.float64)
+    total = np.bincount(bins, weights=values, minlength=BINS)
+    square = np.bincount(bins, weights=values * values, minlength=BINS)
+    keep = weight > 0
+    prefix = [np.concatenate([[0.0], np.cumsum(a[keep])]) for a in (weight, total, square)]
+    n = int(keep.sum())
+    cut = np.arange(n + 1)
+    first, second = cut[:, None], cut[None, :]
 
-        def sse(start: np.ndarray, stop: np.ndarray) -> np.ndarray:
-            weight = cw[stop] - cw[start]
-            total = cs[stop] - cs[start]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                return np.where(weight > 0, cq[stop] - cq[start] - total * total / weight, 0.0)
+    def error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        w = prefix[0][b] - prefix[0][a]
+        s = prefix[1][b] - prefix[1][a]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(w > 0, prefix[2][b] - prefix[2][a] - s * s / w, 0.0)
 
-        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
-        cost = sse(np.zeros_like(i), i) + sse(i, j) + sse(j, np.full_like(j, n))
-        cost[(i < 1) | (i > n - 2) | (j <= i) | (j > n - 1)] = np.inf
+    if n >= 3:  # the best pair of cuts; else centroids spread over the range
+        cost = error(np.zeros_like(first), first) + error(first, second)
+        cost += error(second, n + 0 * first)
+        cost[(first < 1) | (first > n - 2) | (second <= first) | (second > n - 1)] = np.inf
         i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
+        w, s = prefix[0], prefix[1]
         centroids = np.array(
-            [
-                sums[:i].sum() / counts[:i].sum(),
-                sums[i:j].sum() / counts[i:j].sum(),
-                sums[j:].sum() / counts[j:].sum(),
-            ]
+            [s[i] / w[i], (s[j] - s[i]) / (w[j] - w[i]), (s[n] - s[j]) / (w[n] - w[j])]
         )
     else:
-        centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
+        centroids = lo + (hi - lo) * np.array([1 / 6, 1 / 2, 5 / 6])
     for _ in range(100):
-        low, high = (centroids[0] + centroids[1]) / 2, (centroids[1] + centroids[2]) / 2
-        members = [values <= low, (values > low) & (values <= high), values > high]
+        low, high = (centroids[:2] + centroids[1:]) / 2
+        groups = [values <= low, (values > low) & (values <= high), values > high]
         updated = np.array(
-            [values[m].mean() if m.any() else c for m, c in zip(members, centroids, strict=True)]
+            [values[g].mean() if g.any() else c for g, c in zip(groups, centroids, strict=True)]
         )
         if np.array_equal(updated, centroids):
             break
         centroids = updated
-    return (centroids[0] + centroids[1]) / 2, (centroids[1] + centroids[2]) / 2
+    low, high = (centroids[:2] + centroids[1:]) / 2
+    return float(low), float(high)
 
 
-def reference_cells(gt: np.ndarray, masks: dict[str, np.ndarray] | None = None) -> np.ndarray:
-    """Cells of all + visibility + depth the numpy way (occlusion and jumps from the library)."""
+def numpy_partition(
+    gt: np.ndarray, masks: Mapping[str, np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cells, order, offsets and the GT in partition order, the whole-array numpy way.
+
+    ``masks``: official ``all`` / ``nonocc`` / ``disc`` masks, used where given.
+    """
     masks = masks or {}
-    valid = criteria.valid_ground_truth(gt, masks.get("all"))
-    occluded, _ = criteria.occlusion(gt, valid, nonocc=masks.get("nonocc"))
-    near_jump = masks["disc"] if "disc" in masks else criteria.discontinuities(gt, valid)
-    visibility = np.full(gt.shape, 2, np.int32)
-    visibility[near_jump] = 1
-    visibility[occluded] = 0
-    low, high = reference_thresholds(gt, valid)
-    depth = np.where(gt > high, 0, np.where(gt > low, 1, 2))
-    cells = visibility + 3 * depth
-    cells[~valid] = -1
-    return cells
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(gt) & (gt > 0)
+    if "all" in masks:
+        valid &= masks["all"]
+    occluded = valid & ~masks["nonocc"] if "nonocc" in masks else numpy_zbuffer(gt, valid)
+    near_jump = masks["disc"] if "disc" in masks else numpy_boundary(gt, valid)
+    visibility = np.where(occluded, 0, np.where(near_jump, 1, 2))
+    low, high = numpy_thresholds(gt[valid].astype(np.float64))
+    with np.errstate(invalid="ignore"):
+        depth = np.where(gt > high, 0, np.where(gt > low, 1, 2))
+    cells = np.where(valid, visibility + 3 * depth, -1).astype(np.int32)
+    flat = cells.ravel()
+    order = np.flatnonzero(flat >= 0)
+    order = order[np.argsort(flat[order], kind="stable")]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(flat[order], minlength=9))])
+    return cells, order, offsets, gt.ravel()[order]
 
 
 def assert_same_partition(gt: np.ndarray, masks: dict[str, np.ndarray] | None = None) -> None:
-    """The compiled build gives the reference's cells, order, offsets and thresholds."""
+    """The compiled build gives the reference's cells, order, offsets, GT order and thresholds."""
     masks = masks or {}
-    partition = Evaluator(("all", "visibility", "depth")).reference(gt, masks=masks).partition
-    cells = reference_cells(gt, masks)
-    np.testing.assert_array_equal(partition.cells, cells)
-    flat = cells.ravel()
-    kept = np.flatnonzero(flat >= 0)
-    order = kept[np.argsort(flat[kept], kind="stable")]
-    np.testing.assert_array_equal(partition.order, order)
-    offsets = np.concatenate([[0], np.cumsum(np.bincount(flat[kept], minlength=9))])
-    np.testing.assert_array_equal(partition.offsets, offsets)
+    reference = Evaluator(("all", "visibility", "depth")).reference(gt, masks=masks)
+    cells, order, offsets, gt_sorted = numpy_partition(gt, masks)
+    np.testing.assert_array_equal(reference.partition.cells, cells)
+    np.testing.assert_array_equal(reference.partition.order, order)
+    np.testing.assert_array_equal(reference.partition.offsets, offsets)
+    np.testing.assert_array_equal(reference.gt_sorted, gt_sorted)
     valid = criteria.valid_ground_truth(gt, masks.get("all"))
     ours = criteria.kmeans_thresholds(gt, valid)
-    np.testing.assert_allclose(ours, reference_thresholds(gt, valid), rtol=1e-12)
+    np.testing.assert_allclose(ours, numpy_thresholds(gt[valid].astype(np.float64)), rtol=1e-12)
 
 
 @st.composite

@@ -272,14 +272,8 @@ def fronts_two(
             continue
         previous = s
         value = second[s]
-        low = 0
-        high = min(n_fronts, 1) if first_only else n_fronts
-        while low < high:
-            middle = (low + high) // 2
-            if smallest[middle] <= value:
-                low = middle + 1
-            else:
-                high = middle
+        searched = min(n_fronts, 1) if first_only else n_fronts
+        low = np.searchsorted(smallest[:searched], value, side="right")  # first front above
         result[s] = low + 1
         if first_only and low > 0:
             continue
