@@ -107,18 +107,22 @@ def main() -> None:
     parser.add_argument("--package-root", type=Path, help="measure this checkout instead")
     args = parser.parse_args()
     base = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    # The runs start in the measured checkout: `python -m` puts the working folder first on
+    # sys.path, so it decides which dispeval_ros is imported.
+    checkout = PACKAGE.parent
     if args.package_root:
-        base["PYTHONPATH"] = str(args.package_root.resolve())
-        print(f"measuring the checkout in {args.package_root}")
+        checkout = args.package_root.resolve()
+        base["PYTHONPATH"] = str(checkout)
+        print(f"measuring the checkout in {checkout}")
     with tempfile.TemporaryDirectory(prefix="dispeval-numba-") as cache:
         cold_and_warm(
             "pip / editable install (fresh NUMBA_CACHE_DIR)",
             {**base, "NUMBA_CACHE_DIR": cache},
-            Path.cwd(),
+            checkout,
         )
     if args.breakdown:
         with tempfile.TemporaryDirectory(prefix="dispeval-numba-") as cache:
-            _, _, report = run(BREAKDOWN, {**base, "NUMBA_CACHE_DIR": cache}, Path.cwd())
+            _, _, report = run(BREAKDOWN, {**base, "NUMBA_CACHE_DIR": cache}, checkout)
         print("\nkernels compiled by the first run (CPU seconds):")
         print(report.rstrip())
     if args.read_only:
