@@ -114,8 +114,17 @@ def occlusion(
             np.ascontiguousarray(valid, dtype=np.bool_),
         )
         return occluded, "right-view GT"
-    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
-    return kernels.forward_warp_occlusion(gt32, valid, float(tolerance)), "left GT z-buffer"
+    width = gt.shape[1]
+    occluded = np.zeros(gt.shape, dtype=np.bool_)
+    kernels.forward_warp_occlusion(
+        np.ascontiguousarray(gt, dtype=np.float32),
+        np.ascontiguousarray(valid, dtype=np.bool_),
+        float(tolerance),
+        occluded,
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+    )
+    return occluded, "left GT z-buffer"
 
 
 def discontinuities(
@@ -125,7 +134,13 @@ def discontinuities(
 
     Only jumps between two valid points count, so the border of unknown GT is no boundary.
     """
-    jumps = kernels.jump_mask(np.ascontiguousarray(gt, dtype=np.float32), valid, float(gap))
+    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
+    kernels.jump_mask(
+        np.ascontiguousarray(gt, dtype=np.float32),
+        np.ascontiguousarray(valid, dtype=np.bool_),
+        float(gap),
+        jumps,
+    )
     if width > 1:
         jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
     return jumps.astype(bool)
@@ -171,13 +186,32 @@ def kmeans_thresholds(
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
-    lo, hi, bin_counts, bin_sums, bin_squares, starts, binned = kernels.histogram_moments(
-        _flat(gt), _flat(valid, np.bool_), _KMEANS_BINS
+    values = _flat(gt)
+    pixels = values.shape[0]
+    value_range = np.empty(2)
+    starts = np.empty(_KMEANS_BINS + 1, dtype=np.int64)
+    binned = np.empty(pixels)
+    moments = np.empty((3, _KMEANS_BINS))
+    count = kernels.histogram_moments(
+        values,
+        _flat(valid, np.bool_),
+        np.empty(pixels),
+        np.empty(pixels, dtype=np.int32),
+        np.zeros((4, _KMEANS_BINS + 1), dtype=np.int64),
+        value_range,
+        starts,
+        binned,
+        moments,
     )
+    binned = binned[:count]
+    lo, hi = float(value_range[0]), float(value_range[1])
+    bin_counts, bin_sums, bin_squares = moments
     occupied = bin_counts > 0
     counts, sums, squares = bin_counts[occupied], bin_sums[occupied], bin_squares[occupied]
     if counts.size >= 3:
-        i, j = kernels.best_three_split(counts, sums, squares)
+        cuts = np.empty(2, dtype=np.int64)
+        kernels.best_three_split(counts, sums, squares, np.empty((3, counts.size + 1)), cuts)
+        i, j = int(cuts[0]), int(cuts[1])
         centroids = np.array(
             [
                 sums[:i].sum() / counts[:i].sum(),
@@ -187,11 +221,11 @@ def kmeans_thresholds(
         )
     else:
         centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
+    clusters = np.empty((2, 3))
     for _ in range(max_iterations):
         low, high = _midpoints(centroids)
-        cluster_counts, cluster_sums = kernels.kmeans_binned_pass(
-            bin_sums, starts, binned, lo, hi, low, high
-        )
+        kernels.kmeans_binned_pass(bin_sums, starts, binned, lo, hi, low, high, clusters)
+        cluster_counts, cluster_sums = clusters
         updated = np.where(
             cluster_counts > 0, cluster_sums / np.maximum(cluster_counts, 1.0), centroids
         )
@@ -368,7 +402,11 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             rows.append(row)
             if criterion_set.overlapping:
                 overlapping.append(name)
-    order, offsets = kernels.counting_order(cells.reshape(-1), _flat(valid, np.bool_), n_cells)
+    flat_valid = _flat(valid, np.bool_)
+    offsets = np.empty(n_cells + 1, dtype=np.int64)
+    order = np.empty(int(np.count_nonzero(flat_valid)), dtype=np.int32)
+    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
+    kernels.counting_order(cells.reshape(-1), flat_valid, lanes, offsets, order)
     return Partition(
         cells=cells,
         criteria=tuple(criteria),

@@ -240,58 +240,66 @@ def accumulate_cells(
 
 @njit(cache=True, nogil=True)
 def counting_order(
-    flat: np.ndarray, flat_valid: np.ndarray, n_cells: int
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    flat: np.ndarray,
+    flat_valid: np.ndarray,
+    lanes: np.ndarray,
+    offsets: np.ndarray,
+    order: np.ndarray,
+) -> None:  # pragma: no cover
     """Mark invalid pixels ``-1`` in the flat cell image (in place), then sort pixels by cell.
 
     A stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s pixels.
+    The caller allocates (kernels that allocate and return arrays take twice as long to
+    compile): ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` one
+    entry per valid pixel.
     """
-    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: no chained increments
+    n_cells = offsets.shape[0] - 1
     for i in range(flat.shape[0]):
         c = flat[i] if flat_valid[i] else -1
         flat[i] = c
-        lanes[i & 3, c + 1] += 1
-    offsets = np.zeros(n_cells + 1, dtype=np.int64)
+        lanes[i & 3, c + 1] += 1  # interleaved counters: no chained increments
+    offsets[0] = 0
     for c in range(n_cells):
         offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
         offsets[c + 1] += lanes[3, c + 1]
-    order = np.empty(offsets[n_cells], dtype=np.int32)
-    filled = np.empty(n_cells + 1, dtype=np.int64)  # loops, not array methods: less to compile
     for c in range(n_cells + 1):
-        filled[c] = offsets[c]
+        lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
     current = 0
-    position = filled[0] if n_cells > 0 else 0
+    position = lanes[0, 0]
     for i in range(flat.shape[0]):  # a run of one cell is placed from a register
         c = flat[i]
         if c >= 0:
             if c != current:
-                filled[current] = position
+                lanes[0, current] = position
                 current = c
-                position = filled[c]
+                position = lanes[0, c]
             order[position] = i
             position += 1
-    return order, offsets
 
 
 @njit(cache=True, nogil=True)
 def forward_warp_occlusion(
-    gt: np.ndarray, valid: np.ndarray, tolerance: float
-) -> np.ndarray:  # pragma: no cover - compiled
+    gt: np.ndarray,
+    valid: np.ndarray,
+    tolerance: float,
+    occluded: np.ndarray,
+    zbuffer: np.ndarray,
+    targets: np.ndarray,
+) -> None:  # pragma: no cover - compiled
     """Occlusion of the left view from the left GT alone (z-buffer forward warping).
 
     Each valid point ``(x, y)`` lands at ``round(x − d)`` in the right view. It is occluded
     when it lands outside the image, or another point lands on the same position with a
-    disparity larger by more than ``tolerance`` (that point is nearer and hides it).
+    disparity larger by more than ``tolerance`` (that point is nearer and hides it). Writes
+    ``occluded`` (all False on entry); ``zbuffer`` (float64) and ``targets`` (int64) are
+    one-row scratch arrays.
     """
     height, width = gt.shape
-    occluded = np.zeros((height, width), dtype=np.bool_)
-    zbuffer = np.empty(width, dtype=np.float64)
-    targets = np.empty(width, dtype=np.int64)  # -1: not valid, -2: lands outside the image
     for y in range(height):
         for x in range(width):
             zbuffer[x] = -np.inf
         for x in range(width):
-            target = -1
+            target = -1  # -1: not valid, -2: lands outside the image
             if valid[y, x]:
                 d = gt[y, x]
                 target = int(np.floor(x - d + 0.5))
@@ -304,7 +312,6 @@ def forward_warp_occlusion(
             target = targets[x]
             if target == -2 or (target >= 0 and zbuffer[target] > gt[y, x] + tolerance):
                 occluded[y, x] = True
-    return occluded
 
 
 @njit(cache=True, nogil=True)
@@ -319,17 +326,19 @@ def threshold_labels(
 
 @njit(cache=True, nogil=True)
 def best_three_split(
-    counts: np.ndarray, sums: np.ndarray, squares: np.ndarray
-) -> tuple[int, int]:  # pragma: no cover - compiled
+    counts: np.ndarray, sums: np.ndarray, squares: np.ndarray, prefix: np.ndarray, cuts: np.ndarray
+) -> None:  # pragma: no cover - compiled
     """Optimal least-squares split of histogram bins into three runs ``[0,i) [i,j) [j,B)``.
 
     Exhaustive over every pair of cuts with prefix sums: the global optimum of 3-means when
-    clusters may only change at bin edges (1-D optimal clusters are intervals).
+    clusters may only change at bin edges (1-D optimal clusters are intervals). Writes
+    ``cuts = (i, j)``; ``prefix`` is a ``(3, bins + 1)`` float64 scratch array.
     """
     bins = counts.shape[0]
-    cw = np.zeros(bins + 1)
-    cs = np.zeros(bins + 1)
-    cq = np.zeros(bins + 1)
+    cw = prefix[0]
+    cs = prefix[1]
+    cq = prefix[2]
+    cw[0] = cs[0] = cq[0] = 0.0
     for b in range(bins):
         cw[b + 1] = cw[b] + counts[b]
         cs[b + 1] = cs[b] + sums[b]
@@ -352,24 +361,34 @@ def best_three_split(
                 best = total
                 best_i = i
                 best_j = j
-    return best_i, best_j
+    cuts[0] = best_i
+    cuts[1] = best_j
 
 
 @njit(cache=True, nogil=True)
 def histogram_moments(
-    flat_values: np.ndarray, flat_valid: np.ndarray, bins: int
-) -> tuple[
-    float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
-]:  # pragma: no cover
-    """Range, then counts, sums and sums of squares of the valid values in ``bins`` equal bins.
+    flat_values: np.ndarray,
+    flat_valid: np.ndarray,
+    packed: np.ndarray,
+    bin_of: np.ndarray,
+    lanes: np.ndarray,
+    value_range: np.ndarray,
+    starts: np.ndarray,
+    binned: np.ndarray,
+    moments: np.ndarray,
+) -> int:  # pragma: no cover - compiled
+    """Range, then counts, sums and sums of squares of the valid values in equal bins.
 
     Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
     pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
     One pass over every pixel (branch-free: the valid values are packed and the range taken
-    together); the rest runs over the valid values only, which on sparse GT are few.
+    together); the rest runs over the valid values only, which on sparse GT are few. The
+    caller allocates: ``packed``, ``bin_of`` (int32) and ``binned`` one entry per pixel,
+    ``lanes`` int64 zeros ``(4, bins + 1)``, ``value_range`` (2), ``starts`` (bins + 1),
+    ``moments`` ``(3, bins)``: counts, sums, squares. Returns the number of valid values.
     """
+    bins = moments.shape[1]
     n = flat_values.shape[0]
-    packed = np.empty(n, dtype=np.float64)
     count = 0
     lo = np.inf
     hi = -np.inf
@@ -380,33 +399,28 @@ def histogram_moments(
         count += 1 if ok else 0
         lo = min(lo, v if ok else np.inf)
         hi = max(hi, v if ok else -np.inf)
+    value_range[0] = lo
+    value_range[1] = hi
     scale = bins / (hi - lo) if hi > lo else 0.0
-    bin_of = np.empty(count, dtype=np.int32)
-    lanes = np.zeros((4, bins), dtype=np.int64)  # interleaved: no chained increments
     for k in range(count):
         b = min(int((packed[k] - lo) * scale), bins - 1)
         bin_of[k] = b
-        lanes[k & 3, b] += 1
-    starts = np.zeros(bins + 1, dtype=np.int64)
+        lanes[k & 3, b] += 1  # interleaved counters: no chained increments
+    starts[0] = 0
     for b in range(bins):
         starts[b + 1] = starts[b] + lanes[0, b] + lanes[1, b] + lanes[2, b] + lanes[3, b]
-    binned = np.empty(count, dtype=np.float64)
-    filled = np.empty(bins + 1, dtype=np.int64)
     for b in range(bins + 1):
-        filled[b] = starts[b]
+        lanes[0, b] = starts[b]  # from here on: where each bin's next value goes
     current = 0
-    position = filled[0]
+    position = lanes[0, 0]
     for k in range(count):  # a run of one bin is placed from a register
         b = bin_of[k]
         if b != current:
-            filled[current] = position
+            lanes[0, current] = position
             current = b
-            position = filled[b]
+            position = lanes[0, b]
         binned[position] = packed[k]
         position += 1
-    counts = np.empty(bins, dtype=np.float64)
-    sums = np.empty(bins, dtype=np.float64)
-    squares = np.empty(bins, dtype=np.float64)
     for b in range(bins):
         total = 0.0
         total_squares = 0.0
@@ -414,10 +428,10 @@ def histogram_moments(
             v = binned[k]
             total += v
             total_squares += v * v
-        counts[b] = starts[b + 1] - starts[b]
-        sums[b] = total
-        squares[b] = total_squares
-    return lo, hi, counts, sums, squares, starts, binned
+        moments[0, b] = starts[b + 1] - starts[b]
+        moments[1, b] = total
+        moments[2, b] = total_squares
+    return count
 
 
 @njit(cache=True, nogil=True)
@@ -429,32 +443,33 @@ def kmeans_binned_pass(
     hi: float,
     low: float,
     high: float,
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    clusters: np.ndarray,
+) -> None:  # pragma: no cover - compiled
     """One Lloyd step of 1-D 3-means from :func:`histogram_moments`: cluster counts and sums.
 
     Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
     Binning is monotonic, so a bin below the one holding a threshold lies wholly below it and
     a bin above wholly above: whole bins add their moments, only the (at most two) bins
-    holding a threshold are split value by value.
+    holding a threshold are split value by value. Writes ``clusters`` ``(2, 3)``: counts, sums.
     """
     bins = sums.shape[0]
     scale = bins / (hi - lo) if hi > lo else 0.0
     cut_low = _bin_of(low, lo, hi, scale, bins)
     cut_high = _bin_of(high, lo, hi, scale, bins)
-    counts3 = np.zeros(3)
-    sums3 = np.zeros(3)
+    for c in range(3):
+        clusters[0, c] = 0.0
+        clusters[1, c] = 0.0
     for b in range(bins):
         if (b == cut_low) | (b == cut_high):
             for k in range(starts[b], starts[b + 1]):
                 v = binned[k]
                 cluster = 0 if v <= low else (1 if v <= high else 2)
-                counts3[cluster] += 1.0
-                sums3[cluster] += v
+                clusters[0, cluster] += 1.0
+                clusters[1, cluster] += v
         else:
             cluster = 0 if b < cut_low else (1 if b < cut_high else 2)
-            counts3[cluster] += starts[b + 1] - starts[b]
-            sums3[cluster] += sums[b]
-    return counts3, sums3
+            clusters[0, cluster] += starts[b + 1] - starts[b]
+            clusters[1, cluster] += sums[b]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -503,10 +518,11 @@ def visibility_labels(
 
 
 @njit(cache=True, nogil=True)
-def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # pragma: no cover
-    """1 at both ends of every 4-neighbour GT jump larger than ``gap`` between valid points."""
+def jump_mask(
+    gt: np.ndarray, valid: np.ndarray, gap: float, jumps: np.ndarray
+) -> None:  # pragma: no cover
+    """1 in ``jumps`` (uint8 zeros) at both ends of every 4-neighbour jump > ``gap`` between valid points."""
     height, width = gt.shape
-    jumps = np.zeros((height, width), dtype=np.uint8)
     for y in range(height):
         for x in range(width):
             if not valid[y, x]:
@@ -518,7 +534,6 @@ def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # p
             if y + 1 < height and valid[y + 1, x] and abs(d - gt[y + 1, x]) > gap:
                 jumps[y, x] = 1
                 jumps[y + 1, x] = 1
-    return jumps
 
 
 @njit(cache=True, nogil=True)
