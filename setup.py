@@ -41,7 +41,7 @@ TEST = [
     "hypothesis>=6",
     "pillow>=9",
     "playwright>=1.40",
-    "moocore>=0.1.7",
+    "moocore>=0.3",
     *DDS,
     *REPORT,
 ]
