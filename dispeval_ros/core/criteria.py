@@ -188,58 +188,22 @@ def kmeans_thresholds(
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     values = _flat(gt)
     pixels = values.shape[0]
-    value_range = np.empty(2)
-    starts = np.empty(_KMEANS_BINS + 1, dtype=np.int64)
-    binned = np.empty(pixels)
-    moments = np.empty((3, _KMEANS_BINS))
-    count = kernels.histogram_moments(
+    thresholds = np.empty(2)
+    kernels.kmeans_three(
         values,
         _flat(valid, np.bool_),
+        max_iterations,
         np.empty(pixels),
         np.empty(pixels, dtype=np.int32),
+        np.empty(pixels),
         np.zeros((4, _KMEANS_BINS + 1), dtype=np.int64),
-        value_range,
-        starts,
-        binned,
-        moments,
+        np.empty((7, _KMEANS_BINS + 1)),
+        thresholds,
     )
-    binned = binned[:count]
-    lo, hi = float(value_range[0]), float(value_range[1])
-    bin_counts, bin_sums, bin_squares = moments
-    occupied = bin_counts > 0
-    counts, sums, squares = bin_counts[occupied], bin_sums[occupied], bin_squares[occupied]
-    if counts.size >= 3:
-        cuts = np.empty(2, dtype=np.int64)
-        kernels.best_three_split(counts, sums, squares, np.empty((3, counts.size + 1)), cuts)
-        i, j = int(cuts[0]), int(cuts[1])
-        centroids = np.array(
-            [
-                sums[:i].sum() / counts[:i].sum(),
-                sums[i:j].sum() / counts[i:j].sum(),
-                sums[j:].sum() / counts[j:].sum(),
-            ]
-        )
-    else:
-        centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
-    clusters = np.empty((2, 3))
-    for _ in range(max_iterations):
-        low, high = _midpoints(centroids)
-        kernels.kmeans_binned_pass(bin_sums, starts, binned, lo, hi, low, high, clusters)
-        cluster_counts, cluster_sums = clusters
-        updated = np.where(
-            cluster_counts > 0, cluster_sums / np.maximum(cluster_counts, 1.0), centroids
-        )
-        if np.array_equal(updated, centroids):
-            break
-        centroids = updated
-    return _midpoints(centroids)
+    return float(thresholds[0]), float(thresholds[1])
 
 
 _KMEANS_BINS = 512
-
-
-def _midpoints(centroids: np.ndarray) -> tuple[float, float]:
-    return float((centroids[0] + centroids[1]) / 2), float((centroids[1] + centroids[2]) / 2)
 
 
 def depth_set(

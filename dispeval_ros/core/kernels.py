@@ -325,69 +325,35 @@ def threshold_labels(
 
 
 @njit(cache=True, nogil=True)
-def best_three_split(
-    counts: np.ndarray, sums: np.ndarray, squares: np.ndarray, prefix: np.ndarray, cuts: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """Optimal least-squares split of histogram bins into three runs ``[0,i) [i,j) [j,B)``.
-
-    Exhaustive over every pair of cuts with prefix sums: the global optimum of 3-means when
-    clusters may only change at bin edges (1-D optimal clusters are intervals). Writes
-    ``cuts = (i, j)``; ``prefix`` is a ``(3, bins + 1)`` float64 scratch array.
-    """
-    bins = counts.shape[0]
-    cw = prefix[0]
-    cs = prefix[1]
-    cq = prefix[2]
-    cw[0] = cs[0] = cq[0] = 0.0
-    for b in range(bins):
-        cw[b + 1] = cw[b] + counts[b]
-        cs[b + 1] = cs[b] + sums[b]
-        cq[b + 1] = cq[b] + squares[b]
-    best = np.inf
-    best_i = 1
-    best_j = 2
-    for i in range(1, bins - 1):
-        n0 = cw[i]
-        sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
-        for j in range(i + 1, bins):
-            n1 = cw[j] - n0
-            n2 = cw[bins] - cw[j]
-            s1 = cs[j] - cs[i]
-            s2 = cs[bins] - cs[j]
-            sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
-            sse2 = (cq[bins] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
-            total = sse0 + sse1 + sse2
-            if total < best:
-                best = total
-                best_i = i
-                best_j = j
-    cuts[0] = best_i
-    cuts[1] = best_j
-
-
-@njit(cache=True, nogil=True)
-def histogram_moments(
+def kmeans_three(
     flat_values: np.ndarray,
     flat_valid: np.ndarray,
+    max_iterations: int,
     packed: np.ndarray,
     bin_of: np.ndarray,
-    lanes: np.ndarray,
-    value_range: np.ndarray,
-    starts: np.ndarray,
     binned: np.ndarray,
+    lanes: np.ndarray,
     moments: np.ndarray,
-) -> int:  # pragma: no cover - compiled
-    """Range, then counts, sums and sums of squares of the valid values in equal bins.
+    thresholds: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Deterministic 1-D 3-means of the valid values: writes the two ``thresholds``.
 
-    Also the valid values grouped by bin (``binned[starts[b]:starts[b + 1]]`` is bin ``b``, in
-    pixel order), so a Lloyd step needs exact values only of the bins a threshold straddles.
-    One pass over every pixel (branch-free: the valid values are packed and the range taken
-    together); the rest runs over the valid values only, which on sparse GT are few. The
-    caller allocates: ``packed``, ``bin_of`` (int32) and ``binned`` one entry per pixel,
-    ``lanes`` int64 zeros ``(4, bins + 1)``, ``value_range`` (2), ``starts`` (bins + 1),
-    ``moments`` ``(3, bins)``: counts, sums, squares. Returns the number of valid values.
+    1. Range and a histogram of ``bins`` equal bins with exact moments; the valid values are
+       also grouped by bin. One pass over every pixel (branch-free: valid values are packed
+       and the range taken together); the rest runs over the valid values only.
+    2. The global optimum over the histogram: every pair of cuts at bin edges, by prefix sums
+       (1-D optimal clusters are intervals), gives the starting centroids.
+    3. Lloyd steps until the centroids no longer change. Binning is monotonic, so a bin below
+       the one holding a threshold lies wholly below it: whole bins add their moments, only
+       the (at most two) bins holding a threshold are split value by value. A value equal
+       to a threshold goes to the lower cluster.
+
+    One compiled function without allocations (each compiled kernel, and every array it
+    allocates or returns, adds to the first run's compile time). The caller allocates:
+    ``packed``, ``bin_of`` (int32), ``binned`` one entry per pixel; ``lanes`` int64 zeros
+    ``(4, bins + 1)``; ``moments`` ``(7, bins + 1)`` float64.
     """
-    bins = moments.shape[1]
+    bins = lanes.shape[1] - 1
     n = flat_values.shape[0]
     count = 0
     lo = np.inf
@@ -399,28 +365,35 @@ def histogram_moments(
         count += 1 if ok else 0
         lo = min(lo, v if ok else np.inf)
         hi = max(hi, v if ok else -np.inf)
-    value_range[0] = lo
-    value_range[1] = hi
     scale = bins / (hi - lo) if hi > lo else 0.0
     for k in range(count):
         b = min(int((packed[k] - lo) * scale), bins - 1)
         bin_of[k] = b
         lanes[k & 3, b] += 1  # interleaved counters: no chained increments
+    starts = lanes[1]  # lanes 1.. are free once the counts are summed into lane 0
+    for b in range(bins):
+        lanes[0, b] += lanes[1, b] + lanes[2, b] + lanes[3, b]
     starts[0] = 0
     for b in range(bins):
-        starts[b + 1] = starts[b] + lanes[0, b] + lanes[1, b] + lanes[2, b] + lanes[3, b]
+        starts[b + 1] = starts[b] + lanes[0, b]
+    filled = lanes[2]
     for b in range(bins + 1):
-        lanes[0, b] = starts[b]  # from here on: where each bin's next value goes
+        filled[b] = starts[b]
     current = 0
-    position = lanes[0, 0]
+    position = filled[0]
     for k in range(count):  # a run of one bin is placed from a register
         b = bin_of[k]
         if b != current:
-            lanes[0, current] = position
+            filled[current] = position
             current = b
-            position = lanes[0, b]
+            position = filled[b]
         binned[position] = packed[k]
         position += 1
+    sums = moments[0]  # per bin, in pixel order
+    kept_counts = moments[1]  # occupied bins only, then their prefix sums
+    kept_sums = moments[2]
+    kept_squares = moments[3]
+    occupied = 0
     for b in range(bins):
         total = 0.0
         total_squares = 0.0
@@ -428,58 +401,84 @@ def histogram_moments(
             v = binned[k]
             total += v
             total_squares += v * v
-        moments[0, b] = starts[b + 1] - starts[b]
-        moments[1, b] = total
-        moments[2, b] = total_squares
-    return count
-
-
-@njit(cache=True, nogil=True)
-def kmeans_binned_pass(
-    sums: np.ndarray,
-    starts: np.ndarray,
-    binned: np.ndarray,
-    lo: float,
-    hi: float,
-    low: float,
-    high: float,
-    clusters: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    """One Lloyd step of 1-D 3-means from :func:`histogram_moments`: cluster counts and sums.
-
-    Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
-    Binning is monotonic, so a bin below the one holding a threshold lies wholly below it and
-    a bin above wholly above: whole bins add their moments, only the (at most two) bins
-    holding a threshold are split value by value. Writes ``clusters`` ``(2, 3)``: counts, sums.
-    """
-    bins = sums.shape[0]
-    scale = bins / (hi - lo) if hi > lo else 0.0
-    cut_low = _bin_of(low, lo, hi, scale, bins)
-    cut_high = _bin_of(high, lo, hi, scale, bins)
-    for c in range(3):
-        clusters[0, c] = 0.0
-        clusters[1, c] = 0.0
-    for b in range(bins):
-        if (b == cut_low) | (b == cut_high):
-            for k in range(starts[b], starts[b + 1]):
-                v = binned[k]
-                cluster = 0 if v <= low else (1 if v <= high else 2)
-                clusters[0, cluster] += 1.0
-                clusters[1, cluster] += v
-        else:
-            cluster = 0 if b < cut_low else (1 if b < cut_high else 2)
-            clusters[0, cluster] += starts[b + 1] - starts[b]
-            clusters[1, cluster] += sums[b]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _bin_of(value: float, lo: float, hi: float, scale: float, bins: int) -> int:  # pragma: no cover
-    """The bin :func:`histogram_moments` gives ``value``; -1 below ``lo``, ``bins`` above ``hi``."""
-    if value < lo:
-        return -1
-    if value > hi:
-        return bins
-    return min(int((value - lo) * scale), bins - 1)
+        sums[b] = total
+        if starts[b + 1] > starts[b]:
+            kept_counts[occupied] = starts[b + 1] - starts[b]
+            kept_sums[occupied] = total
+            kept_squares[occupied] = total_squares
+            occupied += 1
+    c0 = lo + (hi - lo) / 6
+    c1 = lo + (hi - lo) / 2
+    c2 = lo + 5 * (hi - lo) / 6
+    if occupied >= 3:
+        cw = moments[4]
+        cs = moments[5]
+        cq = moments[6]
+        cw[0] = cs[0] = cq[0] = 0.0
+        for b in range(occupied):
+            cw[b + 1] = cw[b] + kept_counts[b]
+            cs[b + 1] = cs[b] + kept_sums[b]
+            cq[b + 1] = cq[b] + kept_squares[b]
+        best = np.inf
+        best_i = 1
+        best_j = 2
+        for i in range(1, occupied - 1):
+            n0 = cw[i]
+            sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+            for j in range(i + 1, occupied):
+                n1 = cw[j] - n0
+                n2 = cw[occupied] - cw[j]
+                s1 = cs[j] - cs[i]
+                s2 = cs[occupied] - cs[j]
+                sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
+                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
+                total = sse0 + sse1 + sse2
+                if total < best:
+                    best = total
+                    best_i = i
+                    best_j = j
+        c0 = cs[best_i] / cw[best_i]
+        c1 = (cs[best_j] - cs[best_i]) / (cw[best_j] - cw[best_i])
+        c2 = (cs[occupied] - cs[best_j]) / (cw[occupied] - cw[best_j])
+    for _ in range(max_iterations):
+        low = (c0 + c1) / 2
+        high = (c1 + c2) / 2
+        cut_low = -1 if low < lo else (bins if low > hi else min(int((low - lo) * scale), bins - 1))
+        cut_high = (
+            -1 if high < lo else (bins if high > hi else min(int((high - lo) * scale), bins - 1))
+        )
+        n0 = n1 = n2 = 0.0
+        s0 = s1 = s2 = 0.0
+        for b in range(bins):
+            if (b == cut_low) | (b == cut_high):
+                for k in range(starts[b], starts[b + 1]):
+                    v = binned[k]
+                    if v <= low:
+                        n0 += 1.0
+                        s0 += v
+                    elif v <= high:
+                        n1 += 1.0
+                        s1 += v
+                    else:
+                        n2 += 1.0
+                        s2 += v
+            elif b < cut_low:
+                n0 += starts[b + 1] - starts[b]
+                s0 += sums[b]
+            elif b < cut_high:
+                n1 += starts[b + 1] - starts[b]
+                s1 += sums[b]
+            else:
+                n2 += starts[b + 1] - starts[b]
+                s2 += sums[b]
+        u0 = s0 / n0 if n0 > 0 else c0
+        u1 = s1 / n1 if n1 > 0 else c1
+        u2 = s2 / n2 if n2 > 0 else c2
+        if u0 == c0 and u1 == c1 and u2 == c2:
+            break
+        c0, c1, c2 = u0, u1, u2
+    thresholds[0] = (c0 + c1) / 2
+    thresholds[1] = (c1 + c2) / 2
 
 
 @njit(cache=True, nogil=True)
