@@ -14,12 +14,11 @@ every valid value, a stable argsort for the order. The process is pinned to one 
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
-from bench_scoring import CRITERIA, benchmark_frames, pin_to_one_core, timed
+from bench_scoring import CRITERIA, run_on_frames, timed
 
 from dispeval_ros import Camera, Evaluator
 
@@ -49,13 +48,12 @@ def bench_case(gt: np.ndarray, camera: Camera, label: str, repeat: int) -> None:
 
 def main() -> None:
     """Run every case."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=20, help="timed builds per measurement")
-    args = parser.parse_args()
-    pin_to_one_core()
-    print("dispeval_ros partition benchmark (one core; median of", args.repeat, "builds)")
-    for gt, _est, camera, label in benchmark_frames():
-        bench_case(gt, camera, label, args.repeat)
+    run_on_frames(
+        __doc__ or "",
+        "partition builds",
+        20,
+        lambda frame, n: bench_case(frame[0], frame[2], frame[3], n),
+    )
 
 
 if __name__ == "__main__":

@@ -163,24 +163,32 @@ def pin_to_one_core() -> None:
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
 
 
-def benchmark_frames() -> list[tuple[np.ndarray, np.ndarray, Camera, str]]:
-    """The benchmark scenes: synthetic 1242×375 and 1920×1080, the KITTI frame if present."""
-    cases = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
+Frame = tuple[np.ndarray, np.ndarray, Camera, str]
+
+
+def run_on_frames(
+    description: str, what: str, repeat: int, case: Callable[[Frame, int], None]
+) -> None:
+    """Parse ``--repeat``, pin to one core and run ``case`` on every benchmark frame.
+
+    Frames: synthetic 1242×375 and 1920×1080, and the KITTI frame if the data is present.
+    """
+    parser = argparse.ArgumentParser(description=description.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=repeat, help=f"timed {what} per measurement")
+    args = parser.parse_args()
+    pin_to_one_core()
+    print(f"dispeval_ros {what} benchmark (one core; median of {args.repeat})")
+    frames = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
     kitti = kitti_frame()
     if kitti is not None:
-        cases.append(kitti)
-    return cases
+        frames.append(kitti)
+    for frame in frames:
+        case(frame, args.repeat)
 
 
 def main() -> None:
     """Run every case."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=40, help="timed calls per measurement")
-    args = parser.parse_args()
-    pin_to_one_core()
-    print("dispeval_ros scoring benchmark (one core; median of", args.repeat, "calls)")
-    for gt, est, camera, label in benchmark_frames():
-        bench_case(gt, est, camera, label, args.repeat)
+    run_on_frames(__doc__ or "", "scoring calls", 40, lambda frame, n: bench_case(*frame, n))
 
 
 if __name__ == "__main__":
