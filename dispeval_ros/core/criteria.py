@@ -371,6 +371,7 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
     order = np.empty(int(np.count_nonzero(flat_valid)), dtype=np.int32)
     lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
     kernels.counting_order(cells.reshape(-1), flat_valid, lanes, offsets, order)
+    order = order[: offsets[-1]]  # all of it unless a set labelled a valid point negative
     return Partition(
         cells=cells,
         criteria=tuple(criteria),
