@@ -37,7 +37,17 @@ DDS = ["cyclonedds>=0.10.5"]
 REPORT = ["matplotlib>=3.5"]
 DASK = ["dask[distributed]>=2023.1"]
 # pytest 9 aborts every run once launch_testing (part of any ROS 2 install) is importable.
-TEST = ["pytest>=7,<9", "hypothesis>=6", "pillow>=9", "playwright>=1.40", *DDS, *REPORT, *DASK]
+# moocore: reference non-dominated sorting for bench/bench_models.py (never imported by the package)
+TEST = [
+    "pytest>=7,<9",
+    "hypothesis>=6",
+    "pillow>=9",
+    "playwright>=1.40",
+    "moocore>=0.3",
+    *DDS,
+    *REPORT,
+    *DASK,
+]
 
 
 def console_scripts() -> list[str]:

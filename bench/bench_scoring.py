@@ -26,7 +26,10 @@ from dispeval_ros.testbed import default_methods, make_driving_sequence
 
 CRITERIA = ("all", "visibility", "depth")
 MEASURES = ("bmp", "mae", "mse", "mre", "sze", "bmpre", "d1", "density")
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(
+    os.environ.get("DISPEVAL_DATA")
+    or Path(__file__).resolve().parents[1].parent / "shared" / "data"
+)
 
 
 def timed(function: Callable[[], object], repeat: int) -> float:
@@ -112,6 +115,15 @@ def bench_case(gt: np.ndarray, est: np.ndarray, camera: Camera, label: str, repe
     t_fused = timed(lambda: fused.score(reference, est), repeat)
     t_interp = timed(lambda: interpolating.score(reference, est), repeat)
     t_numpy = timed(lambda: numpy_baseline(gt, est, masks, camera, 1.0, 0.01), max(3, repeat // 4))
+    t_array = timed(lambda: fused.score(gt, est, camera), repeat)  # GT found in the cache
+    others = [np.where(gt > 0, gt + shift, gt) for shift in (0.5, 1.0, 1.5)]
+    for other in others:  # three more GT maps cached; scoring cycles through all four
+        fused.score(other, est, camera)
+    maps = [gt, *others]
+    references = [fused.reference(m, camera) for m in maps]
+    rounds = repeat // 4 + 1
+    t_cycle = timed(lambda: [fused.score(m, est, camera) for m in maps], rounds) / 4
+    t_cycle_prepared = timed(lambda: [fused.score(r, est) for r in references], rounds) / 4
 
     ours = fused.score(reference, est)
     theirs = numpy_baseline(gt, est, masks, camera, 1.0, 0.01)
@@ -134,23 +146,49 @@ def bench_case(gt: np.ndarray, est: np.ndarray, camera: Camera, label: str, repe
     print(
         f"  fused scoring, interpolate (default)    {t_interp:8.2f} ms   {t_numpy / t_interp:5.1f}× faster"
     )
+    print(
+        f"  array API score(gt, est), GT cached     {t_array:8.2f} ms   {t_numpy / t_array:5.1f}× faster"
+        f"   ({t_array / t_fused:4.2f}× the prepared reference)"
+    )
+    print(
+        f"  array API, cycling 4 cached GT maps     {t_cycle:8.2f} ms   {t_numpy / t_cycle:5.1f}× faster"
+        f"   ({t_cycle / t_cycle_prepared:4.2f}× cycling 4 prepared references)"
+    )
     print(f"  largest relative difference fused vs baseline: {worst:.2e}")
+
+
+def pin_to_one_core() -> None:
+    """Run on one core (where the OS allows it): timings then do not depend on scheduling."""
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+
+
+Frame = tuple[np.ndarray, np.ndarray, Camera, str]
+
+
+def run_on_frames(
+    description: str, what: str, repeat: int, case: Callable[[Frame, int], None]
+) -> None:
+    """Parse ``--repeat``, pin to one core and run ``case`` on every benchmark frame.
+
+    Frames: synthetic 1242×375 and 1920×1080, and the KITTI frame if the data is present.
+    """
+    parser = argparse.ArgumentParser(description=description.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=repeat, help=f"timed {what} per measurement")
+    args = parser.parse_args()
+    pin_to_one_core()
+    print(f"dispeval_ros {what} benchmark (one core; median of {args.repeat})")
+    frames = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
+    kitti = kitti_frame()
+    if kitti is not None:
+        frames.append(kitti)
+    for frame in frames:
+        case(frame, args.repeat)
 
 
 def main() -> None:
     """Run every case."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=40, help="timed calls per measurement")
-    args = parser.parse_args()
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    print("dispeval_ros scoring benchmark (one core; median of", args.repeat, "calls)")
-    cases = [synthetic_frame(1242, 375), synthetic_frame(1920, 1080)]
-    kitti = kitti_frame()
-    if kitti is not None:
-        cases.append(kitti)
-    for gt, est, camera, label in cases:
-        bench_case(gt, est, camera, label, args.repeat)
+    run_on_frames(__doc__ or "", "scoring calls", 40, lambda frame, n: bench_case(*frame, n))
 
 
 if __name__ == "__main__":

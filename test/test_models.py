@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from dispeval_ros.core import dominance
 from dispeval_ros.core.models import (
     ModelResult,
     Reduction,
@@ -416,3 +417,86 @@ def test_measure_consistency_properties(pairs: list[tuple[int, int]]) -> None:
     assert 0.0 <= value <= 1.0
     assert value == measure_consistency(second, first)
     assert measure_consistency(first, first) == 1.0
+
+
+# --- sort-based non-dominated sorting against a brute-force peeling ----------------------
+
+
+def _brute_groups(matrix: np.ndarray) -> list[int]:
+    """A* Groups by definition: peel the non-dominated rows of what remains, pair by pair."""
+    rows = [[math.inf if math.isnan(v) else float(v) for v in row] for row in matrix]
+
+    def beats(a: list[float], b: list[float]) -> bool:
+        pairs = list(zip(a, b, strict=True))
+        return all(x <= y for x, y in pairs) and any(x < y for x, y in pairs)
+
+    groups = [0] * len(rows)
+    remaining = set(range(len(rows)))
+    group = 0
+    while remaining:
+        group += 1
+        front = {j for j in remaining if not any(beats(rows[i], rows[j]) for i in remaining)}
+        for j in front:
+            groups[j] = group
+        remaining -= front
+    return groups
+
+
+# Heavy ties: few distinct values, signed zeros that must compare equal, NaN (= +inf) and +inf.
+tied_values = st.sampled_from([0.0, -0.0, 1.0, 2.0, 2.5, math.nan, math.inf])
+random_values = st.one_of(st.floats(0.0, 1e6), st.sampled_from([math.nan, math.inf, -0.0]))
+
+
+@st.composite
+def objective_matrices(draw: st.DrawFn) -> np.ndarray:
+    """Random or tied matrices, often with duplicate rows drawn from a small pool."""
+    n = draw(st.integers(1, 14))
+    m = draw(st.sampled_from([1, 2, 2, 3, 4, 6]))
+    elements = draw(st.sampled_from([tied_values, random_values]))
+    pool = draw(hnp.arrays(np.float64, (draw(st.integers(1, n)), m), elements=elements))
+    picks = draw(st.lists(st.integers(0, len(pool) - 1), min_size=n, max_size=n))
+    return pool[picks]
+
+
+@pytest.mark.parametrize("small_problem", [dominance.SMALL_PROBLEM, 0])
+@settings(max_examples=300, deadline=None)
+@given(matrix=objective_matrices())
+def test_groups_match_brute_force_peeling(matrix: np.ndarray, small_problem: int) -> None:
+    """Both paths: the dominance table for few methods and the compiled sorting (forced)."""
+    expected = _brute_groups(matrix)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(dominance, "SMALL_PROBLEM", small_problem)
+        assert astar_groups(matrix).tolist() == expected
+        assert pareto_front(matrix).tolist() == [g == 1 for g in expected]
+        names = [f"m{i}" for i in range(len(matrix))]
+        result = evaluate_models(names, matrix)
+        assert list(result.groups.values()) == expected
+
+
+@pytest.mark.parametrize("small_problem", [dominance.SMALL_PROBLEM, 0])
+def test_signed_zero_and_duplicates_tie(
+    monkeypatch: pytest.MonkeyPatch, small_problem: int
+) -> None:
+    monkeypatch.setattr(dominance, "SMALL_PROBLEM", small_problem)
+    matrix = [[0.0, 1.0, 2.0], [-0.0, 1.0, 2.0], [0.0, 1.0, 2.0], [0.0, 1.0, 3.0]]
+    assert astar_groups(matrix).tolist() == [1, 1, 1, 2]
+    assert astar_groups([[-0.0, 1.0], [0.0, 1.0], [0.0, 0.5]]).tolist() == [2, 2, 1]
+
+
+def test_sweep_scale_groups_match_brute_force() -> None:
+    """A few hundred correlated, rounded methods (many groups, ties and duplicate rows)."""
+    rng = np.random.default_rng(11)
+    for objectives in (2, 3, 12):
+        quality = rng.gamma(2.0, 2.0, size=(300, 1))
+        matrix = np.round(quality + rng.normal(0.0, 0.8, size=(300, objectives)), 0)
+        matrix[rng.random(matrix.shape) < 0.02] = np.nan
+        assert astar_groups(matrix).tolist() == _brute_groups(matrix)
+
+
+def test_long_chains_and_many_groups() -> None:
+    """More groups than the sorter's storage foresees at first (it grows)."""
+    chain = np.arange(400, dtype=float)[::-1, None] * np.ones((1, 3))
+    assert astar_groups(chain).tolist() == list(range(400, 0, -1))
+    assert pareto_front(chain).tolist() == [False] * 399 + [True]
+    pairs = np.column_stack([np.arange(300.0), np.arange(300.0)[::-1] % 7])
+    assert astar_groups(pairs).tolist() == _brute_groups(pairs)

@@ -611,6 +611,20 @@ def test_visibility_left_right_check_with_right_gt() -> None:
     assert both.counts()["occluded"] == 0
 
 
+def test_left_right_check_rounds_like_c_and_rejects_unknown_right_values() -> None:
+    """MiddEval3's computemask: C ``round`` (x − d = −0.5 → −1) and unknown right GT mismatches.
+
+    x=0, d=0.5: −0.5 rounds to −1, outside (rounding half up would land on right[0] = 0.5
+    and agree). x=1, d=2: −1, outside. x=2, d=1: right[1] = 0 is unknown (as 0 it would
+    agree within 1). x=3, d=1.5: 1.5 rounds to 2, right[2] = 2 agrees. x=4, d=1: right[3]
+    is inf, unknown. x=5, d=1: right[4] is NaN, unknown.
+    """
+    gt = np.array([[0.5, 2.0, 1.0, 1.5, 1.0, 1.0]], np.float32)
+    right = np.array([[0.5, 0.0, 2.0, np.inf, np.nan, 1.0]], np.float32)
+    partition = Evaluator(criteria=("visibility",)).reference(gt, gt_right=right).partition
+    np.testing.assert_array_equal(partition.mask("occluded"), [[1, 1, 1, 0, 1, 1]])
+
+
 def test_visibility_zbuffer_and_discontinuities_by_hand() -> None:
     # two identical rows, 14 columns, boundary width 3:
     #   d:       2 2 2 2 2 2 6 6 2 2 2  2  2  .(0)
@@ -765,6 +779,42 @@ def test_cache_follows_masks_and_roi_contents() -> None:
     assert evaluator.score(gt, gt, masks=masks, roi=roi)["roi"]["n"] == 0
     roi[:2] = True
     assert evaluator.score(gt, gt, masks=masks, roi=roi)["roi"]["n"] == 12
+
+
+def test_cache_hits_by_bit_pattern_newest_first(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(5)
+    maps = [rng.uniform(1, 30, (6, 7)).astype(np.float32) for _ in range(5)]
+    maps[0][0, :3] = np.nan  # NaN GT values: bit-equal copies still hit the cache
+    est = maps[0] + 1.0
+    evaluator = Evaluator(criteria=("all", "depth"), cache_size=4)
+    built: list[int] = []
+    original = evaluator.reference
+
+    def counting(gt: np.ndarray, *args: object, **kwargs: object) -> object:
+        built.append(1)
+        return original(gt, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(evaluator, "reference", counting)
+    first = [evaluator.score(gt, est).sums for gt in maps[:4]]
+    assert len(built) == 4
+    again = [evaluator.score(gt.copy(), est).sums for gt in maps[:4]]  # equal content, new objects
+    assert len(built) == 4
+    for a, b in zip(first, again, strict=True):
+        np.testing.assert_array_equal(a, b)
+    # maps[0] was used last-but-three: a fifth map evicts the least recently used (maps[1])
+    evaluator.score(maps[0], est)
+    evaluator.score(maps[4], est)
+    assert len(built) == 5
+    evaluator.score(maps[0], est)
+    assert len(built) == 5
+    evaluator.score(maps[1], est)
+    assert len(built) == 6
+    # -0.0 differs from 0.0 in bits only: a rebuilt reference with the same scores
+    zeros = maps[2].copy()
+    zeros[1, :] = 0.0
+    plus = evaluator.score(zeros, est).sums
+    minus = evaluator.score(np.where(zeros == 0, np.float32(-0.0), zeros), est).sums
+    np.testing.assert_array_equal(plus, minus)
 
 
 # ------------------------------------------------------------------------------------ errors

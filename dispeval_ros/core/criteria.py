@@ -81,6 +81,11 @@ def _size(array: np.ndarray) -> str:
     return "×".join(str(n) for n in array.shape)
 
 
+def _flat(array: np.ndarray, dtype: type | None = None) -> np.ndarray:
+    """A contiguous 1-D view (a copy only if needed): kernels loop over flat arrays."""
+    return np.ascontiguousarray(array, dtype=dtype).reshape(-1)
+
+
 def all_set(valid: np.ndarray) -> CriterionSet:
     """The single criterion ``all``: every valid point."""
     return _partitioning("all", np.zeros(valid.shape, np.int32), ("all",), "valid GT")
@@ -97,26 +102,32 @@ def occlusion(
     """Occluded valid points and where that knowledge came from.
 
     In order of preference: an official non-occlusion mask, a left-right check against the
-    right-view GT (``|D_L(x,y) − D_R(x − D_L, y)| > 1`` or the target outside the image), or
-    z-buffer forward warping of the left GT alone.
+    right-view GT as MiddEval3's ``computemask`` does it (``|D_L(x,y) − D_R(t, y)| > 1`` with
+    ``t = round(x − D_L)`` rounding halves away from zero, the target outside the image, or an
+    unknown right-view value), or z-buffer forward warping of the left GT alone.
     """
     if nonocc is not None:
         _check_shape("the 'nonocc' mask", nonocc, gt)
         return valid & ~nonocc.astype(bool, copy=False), "official mask"
     if gt_right is not None:
         _check_shape("the right-view ground truth", gt_right, gt)
-        height, width = gt.shape
-        columns = np.arange(width, dtype=np.float64)[None, :]
-        safe = np.where(valid, gt, 0.0)
-        target = np.floor(columns - safe + 0.5).astype(np.int64)
-        inside = (target >= 0) & (target < width)
-        rows = np.broadcast_to(np.arange(height)[:, None], gt.shape)
-        right = gt_right[rows, np.clip(target, 0, width - 1)].astype(np.float64)
-        right = np.where(np.isfinite(right), right, 0.0)
-        mismatch = np.abs(safe - right) > 1.0
-        return valid & (~inside | mismatch), "right-view GT"
-    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
-    return kernels.forward_warp_occlusion(gt32, valid, float(tolerance)), "left GT z-buffer"
+        occluded = kernels.left_right_occlusion(
+            np.ascontiguousarray(gt, dtype=np.float32),
+            np.ascontiguousarray(gt_right, dtype=np.float32),
+            np.ascontiguousarray(valid, dtype=np.bool_),
+        )
+        return occluded, "right-view GT"
+    width = gt.shape[1]
+    occluded = np.zeros(gt.shape, dtype=np.bool_)
+    kernels.forward_warp_occlusion(
+        np.ascontiguousarray(gt, dtype=np.float32),
+        np.ascontiguousarray(valid, dtype=np.bool_),
+        float(tolerance),
+        occluded,
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+    )
+    return occluded, "left GT z-buffer"
 
 
 def discontinuities(
@@ -126,7 +137,13 @@ def discontinuities(
 
     Only jumps between two valid points count, so the border of unknown GT is no boundary.
     """
-    jumps = kernels.jump_mask(np.ascontiguousarray(gt, dtype=np.float32), valid, float(gap))
+    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
+    kernels.jump_mask(
+        np.ascontiguousarray(gt, dtype=np.float32),
+        np.ascontiguousarray(valid, dtype=np.bool_),
+        float(gap),
+        jumps,
+    )
     if width > 1:
         jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
     return jumps.astype(bool)
@@ -198,9 +215,10 @@ def visibility_set(
         source += ", sparse-GT boundary"
     else:
         near_jump = discontinuities(gt, valid, gap, width)
-    labels = np.full(gt.shape, 2, np.int32)
-    labels[near_jump] = 1
-    labels[occluded] = 0
+    labels = np.empty(gt.shape, np.int32)
+    kernels.visibility_labels(
+        _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
+    )
     return _partitioning("visibility", labels, VISIBILITY, source)
 
 
@@ -213,43 +231,29 @@ def kmeans_thresholds(
     optimal within-cluster error from range-based starting points), so it starts from the
     global optimum over a fine histogram (every pair of cuts at bin edges, exact bin
     moments) and then iterates on the exact values until the centroids no longer change.
-    A value equal to a threshold goes to the lower (farther) cluster.
+    Each step sums whole bins from their moments and splits value by value only the bins a
+    threshold falls in. A value equal to a threshold goes to the lower (farther) cluster.
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
-    gt = np.ascontiguousarray(gt)
-    lo, hi = kernels.valid_range(gt, valid)
-    counts, sums, squares = kernels.histogram_moments(gt, valid, lo, hi, _KMEANS_BINS)
-    occupied = counts > 0
-    counts, sums, squares = counts[occupied], sums[occupied], squares[occupied]
-    if counts.size >= 3:
-        i, j = kernels.best_three_split(counts, sums, squares)
-        centroids = np.array(
-            [
-                sums[:i].sum() / counts[:i].sum(),
-                sums[i:j].sum() / counts[i:j].sum(),
-                sums[j:].sum() / counts[j:].sum(),
-            ]
-        )
-    else:
-        centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
-    for _ in range(max_iterations):
-        low, high = _midpoints(centroids)
-        cluster_counts, cluster_sums = kernels.kmeans_1d_pass(gt, valid, low, high)
-        updated = np.where(
-            cluster_counts > 0, cluster_sums / np.maximum(cluster_counts, 1.0), centroids
-        )
-        if np.array_equal(updated, centroids):
-            break
-        centroids = updated
-    return _midpoints(centroids)
+    values = _flat(gt)
+    pixels = values.shape[0]
+    thresholds = np.empty(2)
+    kernels.kmeans_three(
+        values,
+        _flat(valid, np.bool_),
+        max_iterations,
+        np.empty(pixels),
+        np.empty(pixels, dtype=np.int32),
+        np.empty(pixels),
+        np.zeros((4, _KMEANS_BINS + 1), dtype=np.int64),
+        np.empty((7, _KMEANS_BINS + 1)),
+        thresholds,
+    )
+    return float(thresholds[0]), float(thresholds[1])
 
 
 _KMEANS_BINS = 512
-
-
-def _midpoints(centroids: np.ndarray) -> tuple[float, float]:
-    return float((centroids[0] + centroids[1]) / 2), float((centroids[1] + centroids[2]) / 2)
 
 
 def depth_set(
@@ -267,7 +271,8 @@ def depth_set(
     """
     if ranges is None:
         low, high = kmeans_thresholds(gt, valid)
-        labels = kernels.threshold_labels(np.ascontiguousarray(gt), low, high)
+        labels = np.empty(gt.shape, np.int32)
+        kernels.threshold_labels(_flat(gt), low, high, labels.reshape(-1))
         return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
     if camera is None:
         raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")
@@ -388,10 +393,9 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            kernels.add_labels(cells, np.ascontiguousarray(criterion_set.labels), stride)
+            kernels.add_labels(cells.reshape(-1), _flat(criterion_set.labels, np.int32), stride)
         stride *= criterion_set.classes
     n_cells = stride
-    kernels.clear_invalid(cells, valid, NOT_EVALUATED)
     criteria: list[str] = []
     rows: list[np.ndarray] = []
     overlapping: list[str] = []
@@ -412,7 +416,12 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             rows.append(row)
             if criterion_set.overlapping:
                 overlapping.append(name)
-    order, offsets = kernels.counting_order(cells, n_cells)
+    flat_valid = _flat(valid, np.bool_)
+    offsets = np.empty(n_cells + 1, dtype=np.int64)
+    order = np.empty(int(np.count_nonzero(flat_valid)), dtype=np.int32)
+    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
+    kernels.counting_order(cells.reshape(-1), flat_valid, lanes, offsets, order)
+    order = order[: offsets[-1]]  # all of it unless a set labelled a valid point negative
     return Partition(
         cells=cells,
         criteria=tuple(criteria),

@@ -12,6 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from dispeval_ros.jitcache import ensure_cache_location
+
+ensure_cache_location()  # before any kernel is decorated with cache=True
+
 # Floating-point flags that allow reassociation (vectorised reductions) but keep NaN/inf
 # semantics, so a stray non-finite value can never be optimised into a wrong comparison.
 _FAST = {"reassoc", "contract", "nsz", "arcp"}
@@ -89,7 +93,8 @@ def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
             fill = out[gap_start - 1]  # trailing gap: the last valid value
         else:
             fill = min(out[gap_start - 1], out[x])  # the farther neighbour
-        out[gap_start:x] = -fill
+        for k in range(gap_start, x):  # a loop, not a slice assignment: much less to compile
+            out[k] = -fill
 
 
 @njit(cache=True, nogil=True)
@@ -116,10 +121,12 @@ def normalise_estimate(
             _fill_row_gaps(out[y])
     if policy != POLICY_INTERPOLATE or first_row < 0:
         return
-    for y in range(first_row):  # rows above the first row with any valid value copy it
-        out[y, :] = -np.abs(out[first_row])
-    for y in range(last_row + 1, height):  # rows below the last one likewise
-        out[y, :] = -np.abs(out[last_row])
+    for y in range(height):  # rows above the first row with any valid value copy it,
+        source = first_row if y < first_row else last_row  # rows below the last one likewise
+        if first_row <= y <= last_row:
+            continue
+        for x in range(width):
+            out[y, x] = -abs(out[source, x])
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -280,47 +287,66 @@ def accumulate_cells(
 
 @njit(cache=True, nogil=True)
 def counting_order(
-    cells: np.ndarray, n_cells: int
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
-    """Stable counting sort of pixel indices by cell (cell < 0: not evaluated)."""
-    flat = cells.ravel()
-    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)  # interleaved: see histogram_moments
+    flat: np.ndarray,
+    flat_valid: np.ndarray,
+    lanes: np.ndarray,
+    offsets: np.ndarray,
+    order: np.ndarray,
+) -> None:  # pragma: no cover
+    """Mark invalid pixels ``-1`` in the flat cell image (in place), then sort pixels by cell.
+
+    A stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s pixels.
+    The caller allocates (kernels that allocate and return arrays take twice as long to
+    compile): ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` one
+    entry per valid pixel.
+    """
+    n_cells = offsets.shape[0] - 1
     for i in range(flat.shape[0]):
-        c = flat[i]
-        if c >= 0:
-            lanes[i & 3, c + 1] += 1
-    counts = lanes.sum(axis=0)
+        c = flat[i] if flat_valid[i] else -1
+        flat[i] = c
+        lanes[i & 3, c + 1] += 1  # interleaved counters: no chained increments
+    offsets[0] = 0
     for c in range(n_cells):
-        counts[c + 1] += counts[c]
-    offsets = counts.copy()
-    order = np.empty(counts[n_cells], dtype=np.int32)
-    position = counts[:n_cells].copy()
-    for i in range(flat.shape[0]):
+        offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
+        offsets[c + 1] += lanes[3, c + 1]
+    for c in range(n_cells + 1):
+        lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
+    current = 0
+    position = lanes[0, 0]
+    for i in range(flat.shape[0]):  # a run of one cell is placed from a register
         c = flat[i]
         if c >= 0:
-            order[position[c]] = i
-            position[c] += 1
-    return order, offsets
+            if c != current:
+                lanes[0, current] = position
+                current = c
+                position = lanes[0, c]
+            order[position] = i
+            position += 1
 
 
 @njit(cache=True, nogil=True)
 def forward_warp_occlusion(
-    gt: np.ndarray, valid: np.ndarray, tolerance: float
-) -> np.ndarray:  # pragma: no cover - compiled
+    gt: np.ndarray,
+    valid: np.ndarray,
+    tolerance: float,
+    occluded: np.ndarray,
+    zbuffer: np.ndarray,
+    targets: np.ndarray,
+) -> None:  # pragma: no cover - compiled
     """Occlusion of the left view from the left GT alone (z-buffer forward warping).
 
     Each valid point ``(x, y)`` lands at ``round(x − d)`` in the right view. It is occluded
     when it lands outside the image, or another point lands on the same position with a
-    disparity larger by more than ``tolerance`` (that point is nearer and hides it).
+    disparity larger by more than ``tolerance`` (that point is nearer and hides it). Writes
+    ``occluded`` (all False on entry); ``zbuffer`` (float64) and ``targets`` (int64) are
+    one-row scratch arrays.
     """
     height, width = gt.shape
-    occluded = np.zeros((height, width), dtype=np.bool_)
-    zbuffer = np.empty(width, dtype=np.float64)
-    targets = np.empty(width, dtype=np.int64)  # -1: not valid, -2: lands outside the image
     for y in range(height):
-        zbuffer[:] = -np.inf
         for x in range(width):
-            target = -1
+            zbuffer[x] = -np.inf
+        for x in range(width):
+            target = -1  # -1: not valid, -2: lands outside the image
             if valid[y, x]:
                 d = gt[y, x]
                 target = int(np.floor(x - d + 0.5))
@@ -333,145 +359,216 @@ def forward_warp_occlusion(
             target = targets[x]
             if target == -2 or (target >= 0 and zbuffer[target] > gt[y, x] + tolerance):
                 occluded[y, x] = True
-    return occluded
-
-
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def kmeans_1d_pass(
-    values: np.ndarray, valid: np.ndarray, low: float, high: float
-) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """One Lloyd step of 3-means on 1-D values: counts and sums of the three clusters.
-
-    Cluster 0 holds values ``<= low``, 1 values in ``(low, high]``, 2 values ``> high``.
-    """
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
-    n0 = n1 = n2 = 0.0
-    s0 = s1 = s2 = 0.0
-    for i in range(flat_values.shape[0]):
-        v = np.float64(flat_values[i]) if flat_valid[i] else 0.0
-        w = 1.0 if flat_valid[i] else 0.0
-        in0 = w if v <= low else 0.0
-        in2 = w if v > high else 0.0
-        in1 = w - in0 - in2
-        n0 += in0
-        n1 += in1
-        n2 += in2
-        s0 += in0 * v
-        s1 += in1 * v
-        s2 += in2 * v
-    return np.array([n0, n1, n2]), np.array([s0, s1, s2])
-
-
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def valid_range(values: np.ndarray, valid: np.ndarray) -> tuple[float, float]:  # pragma: no cover
-    """Smallest and largest of the valid values."""
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
-    lo = np.inf
-    hi = -np.inf
-    for i in range(flat_values.shape[0]):
-        v = np.float64(flat_values[i])
-        lo = min(lo, v) if flat_valid[i] else lo
-        hi = max(hi, v) if flat_valid[i] else hi
-    return lo, hi
 
 
 @njit(cache=True, nogil=True)
-def threshold_labels(values: np.ndarray, low: float, high: float) -> np.ndarray:  # pragma: no cover
+def threshold_labels(
+    flat_values: np.ndarray, low: float, high: float, flat_labels: np.ndarray
+) -> None:  # pragma: no cover
     """Class 0 above ``high``, 1 in ``(low, high]``, 2 otherwise (near / mid / far)."""
-    labels = np.empty(values.shape, dtype=np.int32)
-    flat_values = values.ravel()
-    flat_labels = labels.ravel()
     for i in range(flat_values.shape[0]):
         v = flat_values[i]
         flat_labels[i] = 0 if v > high else (1 if v > low else 2)
-    return labels
 
 
 @njit(cache=True, nogil=True)
-def best_three_split(
-    counts: np.ndarray, sums: np.ndarray, squares: np.ndarray
-) -> tuple[int, int]:  # pragma: no cover - compiled
-    """Optimal least-squares split of histogram bins into three runs ``[0,i) [i,j) [j,B)``.
+def kmeans_three(
+    flat_values: np.ndarray,
+    flat_valid: np.ndarray,
+    max_iterations: int,
+    packed: np.ndarray,
+    bin_of: np.ndarray,
+    binned: np.ndarray,
+    lanes: np.ndarray,
+    moments: np.ndarray,
+    thresholds: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Deterministic 1-D 3-means of the valid values: writes the two ``thresholds``.
 
-    Exhaustive over every pair of cuts with prefix sums: the global optimum of 3-means when
-    clusters may only change at bin edges (1-D optimal clusters are intervals).
+    1. Range and a histogram of ``bins`` equal bins with exact moments; the valid values are
+       also grouped by bin. One pass over every pixel (branch-free: valid values are packed
+       and the range taken together); the rest runs over the valid values only.
+    2. The global optimum over the histogram: every pair of cuts at bin edges, by prefix sums
+       (1-D optimal clusters are intervals), gives the starting centroids.
+    3. Lloyd steps until the centroids no longer change. Binning is monotonic, so a bin below
+       the one holding a threshold lies wholly below it: whole bins add their moments, only
+       the (at most two) bins holding a threshold are split value by value. A value equal
+       to a threshold goes to the lower cluster.
+
+    One compiled function without allocations (each compiled kernel, and every array it
+    allocates or returns, adds to the first run's compile time). The caller allocates:
+    ``packed``, ``bin_of`` (int32), ``binned`` one entry per pixel; ``lanes`` int64 zeros
+    ``(4, bins + 1)``; ``moments`` ``(7, bins + 1)`` float64.
     """
-    bins = counts.shape[0]
-    cw = np.zeros(bins + 1)
-    cs = np.zeros(bins + 1)
-    cq = np.zeros(bins + 1)
-    for b in range(bins):
-        cw[b + 1] = cw[b] + counts[b]
-        cs[b + 1] = cs[b] + sums[b]
-        cq[b + 1] = cq[b] + squares[b]
-    best = np.inf
-    best_i = 1
-    best_j = 2
-    for i in range(1, bins - 1):
-        n0 = cw[i]
-        sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
-        for j in range(i + 1, bins):
-            n1 = cw[j] - n0
-            n2 = cw[bins] - cw[j]
-            s1 = cs[j] - cs[i]
-            s2 = cs[bins] - cs[j]
-            sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
-            sse2 = (cq[bins] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
-            total = sse0 + sse1 + sse2
-            if total < best:
-                best = total
-                best_i = i
-                best_j = j
-    return best_i, best_j
-
-
-@njit(cache=True, nogil=True)
-def histogram_moments(
-    values: np.ndarray, valid: np.ndarray, lo: float, hi: float, bins: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
-    """Counts, sums and sums of squares of the valid values in ``bins`` equal bins."""
-    # Neighbouring pixels usually fall in the same bin: a run of one bin is summed in
-    # registers and added once, instead of chaining every update through memory.
-    counts = np.zeros(bins, dtype=np.float64)
-    sums = np.zeros(bins, dtype=np.float64)
-    squares = np.zeros(bins, dtype=np.float64)
-    flat_values = values.ravel()
-    flat_valid = valid.ravel()
+    bins = lanes.shape[1] - 1
+    n = flat_values.shape[0]
+    count = 0
+    lo = np.inf
+    hi = -np.inf
+    for i in range(n):
+        ok = flat_valid[i]
+        v = np.float64(flat_values[i])
+        packed[count] = v  # overwritten by the next value unless this one is valid
+        count += 1 if ok else 0
+        lo = min(lo, v if ok else np.inf)
+        hi = max(hi, v if ok else -np.inf)
     scale = bins / (hi - lo) if hi > lo else 0.0
-    current = -1
-    run_count = 0.0
-    run_sum = 0.0
-    run_squares = 0.0
-    for i in range(flat_values.shape[0]):
-        if flat_valid[i]:
-            v = np.float64(flat_values[i])
-            b = min(int((v - lo) * scale), bins - 1)
-            if b != current:
-                if current >= 0:
-                    counts[current] += run_count
-                    sums[current] += run_sum
-                    squares[current] += run_squares
-                current = b
-                run_count = 0.0
-                run_sum = 0.0
-                run_squares = 0.0
-            run_count += 1.0
-            run_sum += v
-            run_squares += v * v
-    if current >= 0:
-        counts[current] += run_count
-        sums[current] += run_sum
-        squares[current] += run_squares
-    return counts, sums, squares
+    for k in range(count):
+        b = min(int((packed[k] - lo) * scale), bins - 1)
+        bin_of[k] = b
+        lanes[k & 3, b] += 1  # interleaved counters: no chained increments
+    starts = lanes[1]  # lanes 1.. are free once the counts are summed into lane 0
+    for b in range(bins):
+        lanes[0, b] += lanes[1, b] + lanes[2, b] + lanes[3, b]
+    starts[0] = 0
+    for b in range(bins):
+        starts[b + 1] = starts[b] + lanes[0, b]
+    filled = lanes[2]
+    for b in range(bins + 1):
+        filled[b] = starts[b]
+    current = 0
+    position = filled[0]
+    for k in range(count):  # a run of one bin is placed from a register
+        b = bin_of[k]
+        if b != current:
+            filled[current] = position
+            current = b
+            position = filled[b]
+        binned[position] = packed[k]
+        position += 1
+    sums = moments[0]  # per bin, in pixel order
+    kept_counts = moments[1]  # occupied bins only, then their prefix sums
+    kept_sums = moments[2]
+    kept_squares = moments[3]
+    occupied = 0
+    for b in range(bins):
+        total = 0.0
+        total_squares = 0.0
+        for k in range(starts[b], starts[b + 1]):
+            v = binned[k]
+            total += v
+            total_squares += v * v
+        sums[b] = total
+        if starts[b + 1] > starts[b]:
+            kept_counts[occupied] = starts[b + 1] - starts[b]
+            kept_sums[occupied] = total
+            kept_squares[occupied] = total_squares
+            occupied += 1
+    c0 = lo + (hi - lo) / 6
+    c1 = lo + (hi - lo) / 2
+    c2 = lo + 5 * (hi - lo) / 6
+    if occupied >= 3:
+        cw = moments[4]
+        cs = moments[5]
+        cq = moments[6]
+        cw[0] = cs[0] = cq[0] = 0.0
+        for b in range(occupied):
+            cw[b + 1] = cw[b] + kept_counts[b]
+            cs[b + 1] = cs[b] + kept_sums[b]
+            cq[b + 1] = cq[b] + kept_squares[b]
+        best = np.inf
+        best_i = 1
+        best_j = 2
+        for i in range(1, occupied - 1):
+            n0 = cw[i]
+            sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+            for j in range(i + 1, occupied):
+                n1 = cw[j] - n0
+                n2 = cw[occupied] - cw[j]
+                s1 = cs[j] - cs[i]
+                s2 = cs[occupied] - cs[j]
+                sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
+                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
+                total = sse0 + sse1 + sse2
+                if total < best:
+                    best = total
+                    best_i = i
+                    best_j = j
+        c0 = cs[best_i] / cw[best_i]
+        c1 = (cs[best_j] - cs[best_i]) / (cw[best_j] - cw[best_i])
+        c2 = (cs[occupied] - cs[best_j]) / (cw[occupied] - cw[best_j])
+    for _ in range(max_iterations):
+        low = (c0 + c1) / 2
+        high = (c1 + c2) / 2
+        cut_low = -1 if low < lo else (bins if low > hi else min(int((low - lo) * scale), bins - 1))
+        cut_high = (
+            -1 if high < lo else (bins if high > hi else min(int((high - lo) * scale), bins - 1))
+        )
+        n0 = n1 = n2 = 0.0
+        s0 = s1 = s2 = 0.0
+        for b in range(bins):
+            if (b == cut_low) | (b == cut_high):
+                for k in range(starts[b], starts[b + 1]):
+                    v = binned[k]
+                    if v <= low:
+                        n0 += 1.0
+                        s0 += v
+                    elif v <= high:
+                        n1 += 1.0
+                        s1 += v
+                    else:
+                        n2 += 1.0
+                        s2 += v
+            elif b < cut_low:
+                n0 += starts[b + 1] - starts[b]
+                s0 += sums[b]
+            elif b < cut_high:
+                n1 += starts[b + 1] - starts[b]
+                s1 += sums[b]
+            else:
+                n2 += starts[b + 1] - starts[b]
+                s2 += sums[b]
+        u0 = s0 / n0 if n0 > 0 else c0
+        u1 = s1 / n1 if n1 > 0 else c1
+        u2 = s2 / n2 if n2 > 0 else c2
+        if u0 == c0 and u1 == c1 and u2 == c2:
+            break
+        c0, c1, c2 = u0, u1, u2
+    thresholds[0] = (c0 + c1) / 2
+    thresholds[1] = (c1 + c2) / 2
 
 
 @njit(cache=True, nogil=True)
-def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # pragma: no cover
-    """1 at both ends of every 4-neighbour GT jump larger than ``gap`` between valid points."""
+def left_right_occlusion(
+    gt: np.ndarray, gt_right: np.ndarray, valid: np.ndarray
+) -> np.ndarray:  # pragma: no cover - compiled
+    """Left-right check against the right-view GT, as MiddEval3's ``computemask`` does it.
+
+    A valid point ``(x, y)`` is occluded when ``t = round(x − d)`` (C ``round``: halves away
+    from zero, so −0.5 → −1) is outside the image, the right GT at ``(t, y)`` is unknown
+    (not finite or ``<= 0``), or ``|d − D_R(t, y)| > 1``.
+    """
     height, width = gt.shape
-    jumps = np.zeros((height, width), dtype=np.uint8)
+    occluded = np.empty((height, width), dtype=np.bool_)
+    for y in range(height):
+        for x in range(width):  # branch-free: every pixel does the same work
+            ok = valid[y, x]
+            d = np.float64(gt[y, x]) if ok else 0.0
+            shift = x - d
+            rounded = int(np.floor(abs(shift) + 0.5))
+            target = rounded if shift >= 0.0 else -rounded
+            inside = (target >= 0) & (target < width)
+            seen = np.float64(gt_right[y, min(max(target, 0), width - 1)])
+            agree = (seen > 0.0) & (seen < np.inf) & (abs(d - seen) <= 1.0)
+            occluded[y, x] = ok and not (inside and agree)
+    return occluded
+
+
+@njit(cache=True, nogil=True)
+def visibility_labels(
+    flat_occluded: np.ndarray, flat_jump: np.ndarray, flat_labels: np.ndarray
+) -> None:  # pragma: no cover
+    """Class per pixel: 0 occluded, else 1 near a jump (boundary), else 2 (interior)."""
+    for i in range(flat_labels.shape[0]):
+        flat_labels[i] = 0 if flat_occluded[i] else (1 if flat_jump[i] else 2)
+
+
+@njit(cache=True, nogil=True)
+def jump_mask(
+    gt: np.ndarray, valid: np.ndarray, gap: float, jumps: np.ndarray
+) -> None:  # pragma: no cover
+    """1 in ``jumps`` (uint8 zeros) at both ends of every 4-neighbour jump > ``gap`` between valid points."""
+    height, width = gt.shape
     for y in range(height):
         for x in range(width):
             if not valid[y, x]:
@@ -483,7 +580,6 @@ def jump_mask(gt: np.ndarray, valid: np.ndarray, gap: float) -> np.ndarray:  # p
             if y + 1 < height and valid[y + 1, x] and abs(d - gt[y + 1, x]) > gap:
                 jumps[y, x] = 1
                 jumps[y + 1, x] = 1
-    return jumps
 
 
 @njit(cache=True, nogil=True)
@@ -516,19 +612,9 @@ def sparse_jump_mask(
 
 
 @njit(cache=True, nogil=True)
-def add_labels(cells: np.ndarray, labels: np.ndarray, stride: int) -> None:  # pragma: no cover
-    """``cells += labels · stride`` in place (one pass, no temporary)."""
-    flat_cells = cells.ravel()
-    flat_labels = labels.ravel()
+def add_labels(
+    flat_cells: np.ndarray, flat_labels: np.ndarray, stride: int
+) -> None:  # pragma: no cover
+    """``cells += labels · stride`` in place on flat arrays (one pass, no temporary)."""
     for i in range(flat_cells.shape[0]):
         flat_cells[i] += flat_labels[i] * stride
-
-
-@njit(cache=True, nogil=True)
-def clear_invalid(cells: np.ndarray, valid: np.ndarray, value: int) -> None:  # pragma: no cover
-    """``cells[~valid] = value`` in place."""
-    flat_cells = cells.ravel()
-    flat_valid = valid.ravel()
-    for i in range(flat_cells.shape[0]):
-        if not flat_valid[i]:
-            flat_cells[i] = value

@@ -12,7 +12,10 @@ reduction's ``u2`` an infinite value is handled as the limit of a very large num
 1 on that objective, every finite value of the same objective 0 (and all-infinite gives 0, as
 ``max = min``).
 
-Everything here is pure numpy and deterministic.
+Everything here is deterministic. Dominance works on per-objective ranks with a sort-based
+non-dominated sorting (:mod:`dispeval_ros.core.dominance`): sweeps of thousands of methods
+(every parameter set of a stereo algorithm is a method) take milliseconds, never an
+``N × N`` matrix.
 """
 
 from __future__ import annotations
@@ -25,18 +28,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from dispeval_ros.core import dominance
 from dispeval_ros.errors import ConfigurationError
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int_]
 GroupsLike = Mapping[str, int] | npt.ArrayLike
-
-# Elements of the (chunk, methods, objectives) comparison block built at once: bounds memory
-# (about 4 MB of booleans) while keeping the work inside numpy.
-_BLOCK_ELEMENTS = 1 << 22
-# Up to this many objectives a per-objective loop over n × n comparisons is faster.
-_LOOP_OBJECTIVES = 32
 
 # Two u2 sums closer than this are the same value: different summation orders of the same
 # fractions must not create a dominance that does not exist mathematically.
@@ -86,68 +84,77 @@ def dominates(a: npt.ArrayLike, b: npt.ArrayLike) -> bool:
     return bool(np.all(va <= vb) and np.any(va < vb))
 
 
-def _weak_dominance(values: FloatArray) -> BoolArray:
-    """Return ``le[i, j] = all(values[i] <= values[j])``.
+def _column_order(values: FloatArray) -> tuple[IntArray, FloatArray]:
+    """Sort each objective once: per objective (rows of the result) the method order and values.
 
-    Few objectives: one ``n × n`` comparison per objective (no 3-D temporary). Many: compare
-    blocks of rows against all rows at once, in memory-bounded blocks.
+    Objective-major, so every sort runs over contiguous memory.
     """
-    n, m = values.shape
-    if m <= _LOOP_OBJECTIVES:
-        le = np.ones((n, n), dtype=np.bool_)
-        for column in values.T:
-            le &= column[:, None] <= column[None, :]
-        return le
-    le = np.empty((n, n), dtype=np.bool_)
-    step = max(1, _BLOCK_ELEMENTS // max(1, n * m))
-    for start in range(0, n, step):
-        block = values[start : start + step, None, :] <= values[None, :, :]
-        le[start : start + step] = block.all(axis=2)
-    return le
+    by_objective = np.ascontiguousarray(values.T)
+    order = np.argsort(by_objective, axis=1)
+    return order, np.take_along_axis(by_objective, order, axis=1)
 
 
-def _dominance(values: FloatArray) -> BoolArray:
-    """Return ``dom[i, j] = (i ≺ j)``.
+def _unsort(sorted_ranks: npt.NDArray[Any], order: IntArray) -> npt.NDArray[Any]:
+    """Ranks back in method order, transposed to ``(methods, objectives)``."""
+    ranks = np.empty_like(sorted_ranks)
+    np.put_along_axis(ranks, order, sorted_ranks, axis=1)
+    return ranks.T
 
-    ``i ≺ j`` iff ``i`` is weakly better everywhere and the vectors differ, i.e. ``j`` is not
-    also weakly better everywhere; so one weak-dominance pass gives the strict relation.
-    """
-    le = _weak_dominance(values)
-    return le & ~le.T
+
+def _dense_ranks(order: IntArray, ordered: FloatArray) -> npt.NDArray[np.int32]:
+    """Rank each objective 0, 1, 2, ... by value, equal values sharing a rank (``-0.0 == 0.0``)."""
+    m, n = ordered.shape
+    sorted_ranks = np.zeros((m, n), dtype=np.int32)
+    np.cumsum(ordered[:, 1:] != ordered[:, :-1], axis=1, out=sorted_ranks[:, 1:])
+    return np.ascontiguousarray(_unsort(sorted_ranks, order))
+
+
+def _competition_from_order(order: IntArray, ordered: FloatArray) -> IntArray:
+    """Rank each objective, 1 = lowest, ties sharing the lowest rank ("1, 1, 3")."""
+    m, n = ordered.shape
+    starts = np.ones((m, n), dtype=np.bool_)
+    starts[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
+    positions = np.arange(1, n + 1, dtype=np.int_)[None, :]
+    sorted_ranks = np.maximum.accumulate(np.where(starts, positions, 0), axis=1)
+    return _unsort(sorted_ranks, order)
+
+
+def _fronts(dense: npt.NDArray[np.int32], first_only: bool) -> IntArray:
+    """A* Group of every row of dense ranks (``first_only``: 1 for A*, 2 for the rest)."""
+    n, m = dense.shape
+    if n == 0:
+        return np.zeros(0, dtype=np.int_)
+    if m == 1:
+        column = dense[:, 0].astype(np.int_) + 1
+        return np.minimum(column, 2) if first_only else column
+    if n <= dominance.SMALL_PROBLEM:
+        return dominance.fronts_small(dense, first_only).astype(np.int_)
+    if m == 2:
+        first = np.ascontiguousarray(dense[:, 0])
+        second = np.ascontiguousarray(dense[:, 1])
+        return dominance.fronts_two(first, second, first_only).astype(np.int_)
+    return dominance.fronts_by_sum(np.ascontiguousarray(dense), first_only).astype(np.int_)
+
+
+def _groups_of(values: FloatArray, first_only: bool) -> IntArray:
+    if values.shape[0] == 0:
+        return np.zeros(0, dtype=np.int_)
+    return _fronts(_dense_ranks(*_column_order(values)), first_only)
 
 
 def pareto_front(matrix: npt.ArrayLike) -> BoolArray:
     """Mark the methods (rows) no other method dominates: A*, the Pareto front."""
-    values = _as_matrix(matrix)
-    if values.shape[0] == 0:
-        return np.zeros(0, dtype=np.bool_)
-    has_dominator: BoolArray = np.any(_dominance(values), axis=0)
-    return ~has_dominator
+    front: BoolArray = _groups_of(_as_matrix(matrix), first_only=True) == 1
+    return front
 
 
 def astar_groups(matrix: npt.ArrayLike) -> IntArray:
     """Give each method its A* Group (1 = the front, 2 = the front of the rest, ...).
 
-    The dominance matrix is built once and fronts are peeled by counting each method's
-    remaining dominators, so a long chain of groups costs no more than one front.
+    Non-dominated sorting on per-objective ranks (see :mod:`dispeval_ros.core.dominance`):
+    ``O(N log N)`` for two objectives and never an ``N × N`` matrix.
     """
-    values = _as_matrix(matrix)
-    n = values.shape[0]
-    groups = np.zeros(n, dtype=np.int_)
-    if n == 0:
-        return groups
-    dom = _dominance(values)
-    dominators = dom.sum(axis=0)
-    remaining = np.ones(n, dtype=np.bool_)
-    group = 0
-    while remaining.any():
-        group += 1
-        # Dominance is a strict partial order, so a non-empty set always has a front.
-        front = remaining & (dominators == 0)
-        groups[front] = group
-        remaining &= ~front
-        dominators = dominators - dom[front].sum(axis=0)
-    return groups
+    return _groups_of(_as_matrix(matrix), first_only=False)
 
 
 def _competition_ranks(values: FloatArray) -> IntArray:
@@ -155,15 +162,7 @@ def _competition_ranks(values: FloatArray) -> IntArray:
     n, m = values.shape
     if n == 0:
         return np.zeros((0, m), dtype=np.int_)
-    order = np.argsort(values, axis=0, kind="stable")
-    ordered = np.take_along_axis(values, order, axis=0)
-    starts = np.ones((n, m), dtype=np.bool_)
-    starts[1:] = ordered[1:] != ordered[:-1]
-    positions = np.arange(1, n + 1, dtype=np.int_)[:, None]
-    sorted_ranks = np.maximum.accumulate(np.where(starts, positions, 0), axis=0)
-    ranks = np.empty((n, m), dtype=np.int_)
-    np.put_along_axis(ranks, order, sorted_ranks, axis=0)
-    return ranks
+    return _competition_from_order(*_column_order(values))
 
 
 def _normalised(values: FloatArray) -> FloatArray:
@@ -397,12 +396,13 @@ def evaluate_models(methods: Sequence[str], matrix: npt.ArrayLike) -> ModelResul
     if values.shape[1] == 0:
         raise ConfigurationError("objective matrix must have at least one objective, got 0")
 
-    groups = astar_groups(values)
+    order, ordered = _column_order(values)  # each objective sorted once for groups and ranks
+    groups = _fronts(_dense_ranks(order, ordered), first_only=False)
     in_front = groups == 1
     astar = [name for name, front in zip(names, in_front, strict=True) if front]
     reduction = front_reduction(values[in_front])
     reduced = [name for name, keep in zip(astar, reduction.reduced, strict=True) if keep]
-    middlebury = middlebury_ranks(values)
+    middlebury = _competition_from_order(order, ordered).mean(axis=1)
     return ModelResult(
         methods=names,
         groups={name: int(g) for name, g in zip(names, groups, strict=True)},
