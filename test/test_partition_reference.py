@@ -22,6 +22,7 @@ from hypothesis.extra import numpy as hnp
 
 from dispeval_ros import Evaluator
 from dispeval_ros.core import criteria
+from dispeval_ros.core.criteria import is_sparse
 from dispeval_ros.errors import DispevalError
 from dispeval_ros.io import load_scene
 
@@ -58,6 +59,21 @@ def numpy_boundary(
     jump[1:] |= down
     jump[:-1] |= down
     return cv2.dilate(jump, np.ones((size, size), np.uint8)).astype(bool)
+
+
+def numpy_sparse_boundary(
+    gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, size: int = 9
+) -> np.ndarray:
+    """Sparse GT: valid points with a valid point in their size × size square off by > ``gap``.
+
+    Such a point exists iff the square's largest valid value exceeds d + gap or its smallest
+    falls below d − gap: a max and a min filter over the valid values.
+    """
+    kernel = np.ones((size, size), np.uint8)
+    d = gt.astype(np.float32)
+    highest = cv2.dilate(np.where(valid, d, -np.inf).astype(np.float32), kernel)
+    lowest = cv2.erode(np.where(valid, d, np.inf).astype(np.float32), kernel)
+    return valid & ((highest - d > gap) | (d - lowest > gap))
 
 
 def numpy_thresholds(values: np.ndarray) -> tuple[float, float]:
@@ -117,7 +133,12 @@ def numpy_partition(
     if "all" in masks:
         valid &= masks["all"]
     occluded = valid & ~masks["nonocc"] if "nonocc" in masks else numpy_zbuffer(gt, valid)
-    near_jump = masks["disc"] if "disc" in masks else numpy_boundary(gt, valid)
+    if "disc" in masks:
+        near_jump = masks["disc"]
+    elif is_sparse(valid):  # LiDAR-like GT: the window rule (METHOD-level change of issue 10)
+        near_jump = numpy_sparse_boundary(gt, valid)
+    else:
+        near_jump = numpy_boundary(gt, valid)
     visibility = np.where(occluded, 0, np.where(near_jump, 1, 2))
     low, high = numpy_thresholds(gt[valid].astype(np.float64))
     with np.errstate(invalid="ignore"):
