@@ -17,25 +17,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from ros_support import launch_in_workspace
 
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
 from dispeval_ros.offline.sample import SAMPLE_METHODS, SAMPLE_NAME, find_sample_bag
 
+launch_in_workspace()
 launch = pytest.importorskip("launch")
 launch_ros_actions = pytest.importorskip("launch_ros.actions")
 launch_testing = pytest.importorskip("launch_testing")
 launch_testing_actions = pytest.importorskip("launch_testing.actions")
 launch_testing_asserts = pytest.importorskip("launch_testing.asserts")
-ament_index = pytest.importorskip("ament_index_python.packages")
-try:
-    ament_index.get_package_share_directory("dispeval_ros")
-except ament_index.PackageNotFoundError:
-    pytest.skip(
-        "dispeval_ros is not installed in a ROS 2 workspace (colcon build, then source "
-        "install/setup.bash): launch cannot find its executables",
-        allow_module_level=True,
-    )
 rclpy = pytest.importorskip("rclpy")
 rclpy_context = pytest.importorskip("rclpy.context")
 rclpy_executors = pytest.importorskip("rclpy.executors")
