@@ -113,20 +113,25 @@ def input_types(config: Any) -> dict[str, Any]:
     return types
 
 
-def launch_in_workspace() -> None:
-    """Skip (saying why) unless ``launch`` is importable and dispeval_ros is built in a workspace.
+def launch_unavailable() -> str | None:
+    """Why the launch tests cannot run here (None if they can); never raises or skips.
 
     ``launch``/``launch_testing`` are not on PyPI, so these tests run under ``colcon test`` in a
-    built ROS 2 workspace only; DISPEVAL_REQUIRE_ROS does not turn this skip into a failure.
+    built ROS 2 workspace only; DISPEVAL_REQUIRE_ROS does not turn this skip into a failure. A
+    launch test module must not skip while it is imported: launch_testing's pytest plugin
+    imports it during collection, and a skip there ends the collection of every test.
     """
     for name in ("launch", "launch_ros.actions", "launch_testing", "ament_index_python.packages"):
-        pytest.importorskip(name)
+        try:
+            importlib.import_module(name)
+        except ImportError as error:
+            return f"{name} is not importable ({error}): launch tests run under colcon test"
     ament_index = importlib.import_module("ament_index_python.packages")
     try:
         ament_index.get_package_share_directory("dispeval_ros")
-    except ament_index.PackageNotFoundError:
-        pytest.skip(
+    except (ament_index.PackageNotFoundError, OSError):  # OSError: AMENT_PREFIX_PATH unset
+        return (
             "dispeval_ros is not installed in a ROS 2 workspace (colcon build, then source "
-            "install/setup.bash): launch cannot find its executables",
-            allow_module_level=True,
+            "install/setup.bash): launch cannot find its executables"
         )
+    return None
