@@ -1,0 +1,415 @@
+"""Measures that need no ground truth: the left and right rectified images judge the estimate.
+
+``vpe`` (view-prediction error, Szeliski's prediction error): the right image warped into the
+left view by the estimate (``x − d``, linear interpolation along the row), mean absolute 8-bit
+grey difference over the pixels whose target lies in the image and is not occluded according
+to the estimate's own z-buffer. ``lrc``: the share of pixels whose right-view estimate (when a
+method publishes one) disagrees by more than 1 px. Both follow the missing-estimate policy as
+the GT measures do (the KITTI-interpolated estimate under ``interpolate``, ``E = 0`` under
+``thesis``, holes left out under ``ignore``): scoring only the valid pixels would reward
+methods that leave the hard pixels out.
+
+Criteria without GT never depend on the method under test: ``all`` (every pixel), ``roi``
+and ``texture`` (from the left image). They are named ``gtfree:<criterion>`` and their sums
+are rows of an ordinary :class:`~dispeval_ros.core.measures.Scores`, so sequences stay exact
+and stores, streams and models take them unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from dispeval_ros.core import criteria as crit
+from dispeval_ros.core import kernels as k
+from dispeval_ros.core.evaluator import POLICIES, as_disparity
+from dispeval_ros.core.measures import (
+    FIELDS,
+    GT_FREE_MEASURES,
+    GT_FREE_PREFIX,
+    Scores,
+    thresholds_for,
+)
+from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchError
+
+GT_FREE_CRITERION_SETS = ("all", "roi", "texture")
+DEFAULT_GT_FREE_CRITERIA = ("all", "texture")
+GT_FREE_SCORED = (*GT_FREE_MEASURES, "density")
+"""What a GT-free criterion reports (with ``n``, its number of pixels)."""
+OCCLUSION_TOLERANCE = 1.0
+"""A pixel is occluded when a pixel landing on the same right-view column has a disparity
+larger by more than this (px): slanted surfaces land neighbours on one column too."""
+LRC_THRESHOLD = 1.0
+"""Left-right check: inconsistent when ``|d_L(x) − d_R(round(x − d_L))|`` exceeds this (px)."""
+
+
+def is_gt_free(criterion: str) -> bool:
+    """Whether a criterion was scored without ground truth."""
+    return criterion.startswith(GT_FREE_PREFIX)
+
+
+def grey8(image: object, what: str) -> np.ndarray:
+    """A 2-D uint8 C-contiguous grey image, or a one-line error saying what came instead."""
+    array = np.asarray(image)
+    if array.ndim != 2 or array.dtype != np.uint8:
+        raise InputError(
+            f"{what} must be an 8-bit grey image, got {array.dtype} of shape {array.shape}"
+        )
+    return np.ascontiguousarray(array)
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _row_zbuffer(
+    coded: np.ndarray, include_missing: bool, zbuffer: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Largest disparity landing on each right-view column (rounded ``x − d``) of one row."""
+    width = coded.shape[0]
+    zbuffer[:] = -np.inf
+    for x in range(width):
+        raw = coded[x]
+        if raw > 0.0 or include_missing:
+            d = abs(raw)
+            target = int(np.floor(x - d + 0.5))
+            if 0 <= target < width and d > zbuffer[target]:
+                zbuffer[target] = d
+
+
+@njit(cache=True, nogil=True)
+def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Runs of equal cells along each row: starts, cell of each run, first run of each row.
+
+    A property of the partition (built once per frame), so scoring each method adds a run's
+    terms in registers instead of finding where the cell changes pixel by pixel.
+    """
+    height, width = cells.shape
+    count = 0
+    for y in range(height):
+        count += 1
+        for x in range(1, width):
+            count += 1 if cells[y, x] != cells[y, x - 1] else 0
+    starts = np.empty(count + 1, dtype=np.int64)
+    run_cells = np.empty(count, dtype=np.int32)
+    row_first = np.empty(height + 1, dtype=np.int64)
+    run = 0
+    for y in range(height):
+        row_first[y] = run
+        for x in range(width):
+            if x == 0 or cells[y, x] != cells[y, x - 1]:
+                starts[run] = x
+                run_cells[run] = cells[y, x]
+                run += 1
+    row_first[height] = run
+    starts[count] = width
+    return starts, run_cells, row_first
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def photometric_sums(
+    left: np.ndarray,
+    right: np.ndarray,
+    coded: np.ndarray,
+    include_missing: bool,
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray],
+    right_coded: np.ndarray,
+    tolerance: float,
+    lrc_threshold: float,
+    sums: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add one estimate's GT-free terms per cell (cells < 0: not evaluated).
+
+    ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
+    (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
+    ``ignore``. ``runs`` comes from :func:`cell_runs`. ``right_coded`` is the right-view
+    estimate coded the same way, or 0×0 for none.
+    """
+    height, width = left.shape
+    zbuffer = np.empty(width, dtype=np.float32)
+    check = right_coded.shape[0] == height
+    for y in range(height):
+        _row_zbuffer(coded[y], include_missing, zbuffer)
+        other = right_coded[y] if check else coded[y]
+        _row_runs(
+            left[y],
+            right[y],
+            coded[y],
+            other,
+            check,
+            include_missing,
+            zbuffer,
+            runs,
+            y,
+            tolerance,
+            lrc_threshold,
+            sums,
+        )
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _row_runs(
+    left: np.ndarray,
+    right: np.ndarray,
+    coded: np.ndarray,
+    right_coded: np.ndarray,
+    check: bool,
+    include_missing: bool,
+    zbuffer: np.ndarray,
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray],
+    y: int,
+    tolerance: float,
+    lrc_threshold: float,
+    sums: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add the terms of every run of one row to its cell's sums."""
+    starts, run_cells, row_first = runs
+    width = left.shape[0]
+    for run in range(row_first[y], row_first[y + 1]):
+        cell = run_cells[run]
+        if cell < 0:
+            continue
+        start = starts[run]
+        stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
+        terms = _run_terms(
+            left,
+            right,
+            coded,
+            right_coded,
+            include_missing,
+            zbuffer,
+            start,
+            stop,
+            width - 1,
+            tolerance,
+            lrc_threshold,
+        )
+        sums[cell, k.FIELD_N] += stop - start
+        sums[cell, k.FIELD_VALID] += terms[0]
+        sums[cell, k.FIELD_N_VPE] += terms[1]
+        sums[cell, k.FIELD_SUM_VPE] += terms[2]
+        if check:
+            sums[cell, k.FIELD_N_LRC] += terms[3]
+            sums[cell, k.FIELD_LRC] += terms[4]
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _run_terms(
+    left: np.ndarray,
+    right: np.ndarray,
+    coded: np.ndarray,
+    right_coded: np.ndarray,
+    include_missing: bool,
+    zbuffer: np.ndarray,
+    start: int,
+    stop: int,
+    last: int,
+    tolerance: float,
+    lrc_threshold: float,
+) -> tuple[float, float, float, float, float]:  # pragma: no cover - compiled
+    """Valid estimates, vpe count and sum, lrc checked and inconsistent over ``[start, stop)``."""
+    floor = -np.inf if include_missing else 0.0  # coded values above it take part
+    n_valid = 0.0
+    n_vpe = 0.0
+    sum_vpe = 0.0
+    n_lrc = 0.0
+    n_bad = 0.0
+    for x in range(start, stop):  # branch-free: holes and occlusions are not predictable
+        raw = coded[x]
+        valid = raw > 0.0  # flags are values, not branches: a branch on one costs 2× the time
+        d = np.float64(abs(raw))
+        source = x - d
+        counted = (raw > floor) & (source >= 0.0) & (source <= last)
+        clamped = min(max(source, 0.0), np.float64(last))
+        target = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
+        other = right_coded[target]  # without a right-view estimate: discarded by the caller
+        checked = counted & (other > floor)
+        inconsistent = checked & (abs(d - abs(other)) > lrc_threshold)
+        visible = counted & ~(zbuffer[target] > d + tolerance)
+        x0 = min(int(clamped), last)
+        x1 = min(x0 + 1, last)
+        low = np.float64(right[x0])
+        predicted = low + (clamped - x0) * (np.float64(right[x1]) - low)
+        difference = abs(np.float64(left[x]) - predicted)
+        n_valid += 1.0 if valid else 0.0
+        n_vpe += 1.0 if visible else 0.0
+        sum_vpe += difference if visible else 0.0
+        n_lrc += 1.0 if checked else 0.0
+        n_bad += 1.0 if inconsistent else 0.0
+    return n_valid, n_vpe, sum_vpe, n_lrc, n_bad
+
+
+@dataclass(frozen=True)
+class ImagePair:
+    """The left and right rectified images of one frame with their GT-free partition.
+
+    Build it once per frame with :meth:`GroundTruthFree.pair` and score every method on it.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    partition: crit.Partition
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Runs of equal cells along the rows (:func:`cell_runs`)."""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image size (rows, columns)."""
+        return self.partition.shape
+
+
+class GroundTruthFree:
+    """Scores estimated disparity maps by the images alone (``vpe``, ``lrc``, ``density``).
+
+    >>> free = GroundTruthFree(("all", "texture"))
+    >>> scores = free.score(free.pair(left, right), est)  # doctest: +SKIP
+    >>> scores["gtfree:textured"]["vpe"]  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA,
+        missing: str = "interpolate",
+        *,
+        roi_names: Mapping[int, str] | None = None,
+        texture_window: int = crit.TEXTURE_WINDOW,
+        texture_threshold: float = crit.TEXTURE_THRESHOLD,
+        occlusion_tolerance: float = OCCLUSION_TOLERANCE,
+        lrc_threshold: float = LRC_THRESHOLD,
+    ) -> None:
+        if isinstance(criteria, str):
+            criteria = (criteria,)
+        chosen = tuple(dict.fromkeys(c for c in criteria if c in GT_FREE_CRITERION_SETS))
+        if not chosen:
+            raise ConfigurationError(
+                "no criterion set that needs no ground truth; choose from "
+                + ", ".join(GT_FREE_CRITERION_SETS)
+            )
+        if missing not in POLICIES:
+            raise ConfigurationError(
+                f"unknown missing-estimate policy '{missing}'; choose from {', '.join(POLICIES)}"
+            )
+        self.criteria = chosen
+        self.missing = missing
+        self.roi_names = dict(roi_names) if roi_names else None
+        self.texture_window = int(texture_window)
+        self.texture_threshold = float(texture_threshold)
+        self.occlusion_tolerance = float(occlusion_tolerance)
+        self.lrc_threshold = float(lrc_threshold)
+        self.thresholds = thresholds_for(GT_FREE_SCORED, 1.0)
+        self._local = threading.local()
+
+    def pair(self, left: object, right: object, roi: np.ndarray | None = None) -> ImagePair:
+        """Check the images and build the GT-free criteria from the left one (once per frame)."""
+        left8 = grey8(left, "the left image")
+        right8 = grey8(right, "the right image")
+        if left8.shape != right8.shape:
+            raise ShapeMismatchError(
+                f"the right image is {right8.shape[1]}×{right8.shape[0]} but the left image is "
+                f"{left8.shape[1]}×{left8.shape[0]}"
+            )
+        everywhere = np.ones(left8.shape, bool)
+        sets = []
+        for name in self.criteria:
+            if name == "all":
+                sets.append(crit.all_set(everywhere))
+            elif name == "texture":
+                sets.append(crit.texture_set(left8, self.texture_window, self.texture_threshold))
+            elif roi is None:
+                raise ConfigurationError(
+                    "the 'roi' criterion set needs a region-of-interest mask or label image"
+                )
+            else:
+                sets.append(crit.roi_set(everywhere, np.asarray(roi), self.roi_names))
+        partition = crit.build_partition(everywhere, sets)
+        return ImagePair(left8, right8, partition, cell_runs(partition.cells))
+
+    def score(
+        self,
+        pair: ImagePair,
+        est: np.ndarray,
+        *,
+        est_range: tuple[float, float] | None = None,
+        est_right: np.ndarray | None = None,
+        right_range: tuple[float, float] | None = None,
+    ) -> Scores:
+        """Score one estimate on ``gtfree:`` criteria (``lrc`` only with ``est_right``)."""
+        coded = self._coded("left", est, est_range, pair.shape, "the estimate")
+        right_coded = (
+            np.zeros((0, 0), np.float32)
+            if est_right is None
+            else self._coded("right", est_right, right_range, pair.shape, "the right-view estimate")
+        )
+        partition = pair.partition
+        sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
+        photometric_sums(
+            pair.left,
+            pair.right,
+            coded,
+            self.missing != "ignore",
+            pair.runs,
+            right_coded,
+            self.occlusion_tolerance,
+            self.lrc_threshold,
+            sums,
+        )
+        return Scores(
+            criteria=tuple(GT_FREE_PREFIX + name for name in partition.criteria),
+            measures=GT_FREE_SCORED,
+            sums=partition.membership.astype(np.float64) @ sums,
+            thresholds=self.thresholds,
+            relative=True,
+            policy=self.missing,
+        )
+
+    def _coded(
+        self,
+        slot: str,
+        est: np.ndarray,
+        est_range: tuple[float, float] | None,
+        shape: tuple[int, int],
+        what: str,
+    ) -> np.ndarray:
+        """The estimate coded by the missing policy (validity in the sign), in a thread buffer."""
+        estimate = as_disparity(est, what)
+        if estimate.shape != shape:
+            raise ShapeMismatchError(
+                f"{what} is {estimate.shape[1]}×{estimate.shape[0]} but the images are "
+                f"{shape[1]}×{shape[0]}"
+            )
+        buffer = getattr(self._local, slot, None)
+        if buffer is None or buffer.shape != shape:
+            buffer = np.empty(shape, dtype=np.float32)
+            setattr(self._local, slot, buffer)
+        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        k.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
+        return buffer
+
+
+def joined(gt: Scores | None, free: Scores | None) -> Scores:
+    """One method's GT scores and GT-free scores as one :class:`Scores` (rows side by side).
+
+    The GT-free rows keep their ``gtfree:`` names; :class:`Scores` reports GT measures only on
+    GT rows and GT-free measures only on ``gtfree:`` rows.
+    """
+    if gt is None or free is None:
+        chosen = gt if gt is not None else free
+        if chosen is None:
+            raise ConfigurationError("no scores to join")
+        return chosen
+    if gt.policy != free.policy:
+        raise ConfigurationError(
+            f"GT scores under '{gt.policy}' and GT-free scores under '{free.policy}'"
+        )
+    return Scores(
+        criteria=(*gt.criteria, *free.criteria),
+        measures=tuple(dict.fromkeys((*gt.measures, *GT_FREE_MEASURES))),
+        sums=np.vstack([gt.sums, free.sums]),
+        thresholds=gt.thresholds,
+        quantiles=dict(gt.quantiles),
+        relative=gt.relative,
+        overlapping=gt.overlapping,
+        policy=gt.policy,
+    )
