@@ -10,7 +10,9 @@ there, and the mean absolute difference to the left image.
 
 from __future__ import annotations
 
+import json
 import math
+import re
 from pathlib import Path
 
 import cv2
@@ -18,12 +20,13 @@ import numpy as np
 import pytest
 from test_real_scenes import kitti_devkit_interpolation
 
+from dispeval_ros.cli.main import main
 from dispeval_ros.core.criteria import texture_set
 from dispeval_ros.core.evaluator import Evaluator
 from dispeval_ros.core.gtfree import GroundTruthFree, joined
 from dispeval_ros.core.measures import Scores
 from dispeval_ros.errors import InputError, ShapeMismatchError
-from dispeval_ros.io import load_scene
+from dispeval_ros.io import load_scene, write_pfm
 from dispeval_ros.testbed.methods import default_methods
 
 POLICIES = ("interpolate", "thesis", "ignore")
@@ -260,3 +263,118 @@ def test_real_pairs_match_loops_and_gt_beats_a_shift(
     true_vpe = free.score(pair, gt)["gtfree:all"]["vpe"]
     shifted = np.where(gt > 0, gt + 2, 0).astype(np.float32)
     assert free.score(pair, shifted)["gtfree:all"]["vpe"] > 1.1 * true_vpe
+
+
+# ------------------------------------------------------------------------------ dispeval eval
+
+
+@pytest.fixture
+def pair_files(tmp_path: Path) -> dict[str, Path]:
+    """The synthetic pair as PNGs, its true disparity, a 2-px-off one and a right-view one."""
+    left, right, disparity = synthetic_pair(40, 90)
+    files = {"left": tmp_path / "left.png", "right": tmp_path / "right.png"}
+    cv2.imwrite(str(files["left"]), left)
+    cv2.imwrite(str(files["right"]), right)
+    cv2.imwrite(str(tmp_path / "colour.png"), cv2.cvtColor(right, cv2.COLOR_GRAY2BGR))
+    files["colour"] = tmp_path / "colour.png"
+    for name, values in (("true", disparity), ("off", disparity + 2), ("gt", disparity)):
+        files[name] = tmp_path / f"{name}.pfm"
+        write_pfm(files[name], values)
+    files["true_right"] = tmp_path / "true_right.pfm"
+    write_pfm(files["true_right"], np.roll(disparity, -6, axis=1))
+    return files
+
+
+def eval_json(capsys: pytest.CaptureFixture[str], *argv: str) -> dict:
+    assert main(["eval", *argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_eval_without_gt_keeps_the_json_shape_and_ranks_by_vpe(
+    capsys: pytest.CaptureFixture[str], pair_files: dict[str, Path]
+) -> None:
+    files = pair_files
+    images = ["--left-image", str(files["left"]), "--right-image", str(files["right"])]
+    document = eval_json(
+        capsys,
+        *images,
+        "--est",
+        f"true={files['true']}",
+        "--est",
+        f"off={files['off']}",
+        "--est-right",
+        f"true={files['true_right']}",
+    )
+    with_gt = eval_json(capsys, "--gt", str(files["gt"]), "--est", str(files["true"]))
+    assert set(with_gt) <= set(document)  # same keys (gt_free added)
+    left, right, disparity = synthetic_pair(40, 90)
+    frames = {f["method"]: f["criteria"] for f in document["frames"]}
+    assert set(frames["true"]) == {"gtfree:all", "gtfree:textured", "gtfree:textureless"}
+    expected = loop_measures(left, right, disparity, "interpolate")
+    assert frames["true"]["gtfree:all"]["vpe"] == pytest.approx(expected["vpe"])
+    assert frames["off"]["gtfree:all"]["vpe"] > 10 * frames["true"]["gtfree:all"]["vpe"]
+    assert frames["true"]["gtfree:all"]["lrc"] is not None
+    assert frames["off"]["gtfree:all"]["lrc"] is None  # no right-view estimate
+    assert document["objectives"][0] == "gtfree:all/vpe"
+    assert document["models"]["groups"]["true"] == 1
+    assert document["gt_free"]["in_objectives"] is True
+
+
+def test_gt_free_measures_stay_out_of_gt_objectives_unless_asked(
+    capsys: pytest.CaptureFixture[str], pair_files: dict[str, Path]
+) -> None:
+    files = pair_files
+    argv = [
+        "--gt",
+        str(files["gt"]),
+        "--left-image",
+        str(files["left"]),
+        "--right-image",
+        str(files["right"]),
+        "--est",
+        str(files["true"]),
+        "--est",
+        str(files["off"]),
+        "--criteria",
+        "all",
+    ]
+    plain = eval_json(capsys, *argv)
+    assert plain["objectives"] == ["all/sze", "all/bmpre"]
+    assert plain["gt_free"]["in_objectives"] is False
+    frame = plain["frames"][0]["criteria"]
+    assert frame["all"]["vpe"] is None
+    assert frame["gtfree:all"]["sze"] is None
+    asked = eval_json(capsys, *argv, "--gt-free-objectives")
+    assert asked["objectives"][:2] == ["all/sze", "all/bmpre"]
+    assert "gtfree:all/vpe" in asked["objectives"]
+    assert main(["eval", *argv]) == 0
+    text = capsys.readouterr().out
+    assert "criterion: gtfree:all  (ground-truth-free" in text
+    assert "vpe [grey levels]" in text
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"right": "colour"}, "is grey but .*colour.png is colour"),
+        ({"est": "gt_small"}, "the estimate is 30×20 but the images are 90×40"),
+        ({"drop_right": True}, "give both --left-image and --right-image"),
+    ],
+)
+def test_eval_bad_images_are_one_line(
+    capsys: pytest.CaptureFixture[str],
+    pair_files: dict[str, Path],
+    tmp_path: Path,
+    change: dict,
+    message: str,
+) -> None:
+    write_pfm(tmp_path / "gt_small.pfm", np.ones((20, 30), np.float32))
+    pair_files["gt_small"] = tmp_path / "gt_small.pfm"
+    argv = ["eval", "--left-image", str(pair_files["left"])]
+    if not change.get("drop_right"):
+        argv += ["--right-image", str(pair_files[change.get("right", "right")])]
+    argv += ["--est", str(pair_files[change.get("est", "true")])]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert re.search(message, err), err

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator
+import numpy as np
+
+from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator, Scores
+from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
+from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
@@ -148,4 +152,65 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
         default=list(DEFAULT_OBJECTIVE_MEASURES),
         metavar="M",
         help=f"measures that form the objectives (default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)})",
+    )
+
+
+def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--gt-free-criteria`` and ``--gt-free-objectives`` (measures from the images alone)."""
+    from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA
+
+    parser.add_argument(
+        "--gt-free-criteria",
+        nargs="+",
+        default=list(DEFAULT_GT_FREE_CRITERIA),
+        metavar="SET",
+        help="criterion sets of the ground-truth-free measures (vpe, lrc): "
+        f"{', '.join(GT_FREE_CRITERION_SETS)} (default: {' '.join(DEFAULT_GT_FREE_CRITERIA)})",
+    )
+    parser.add_argument(
+        "--gt-free-objectives",
+        action="store_true",
+        help="with ground truth, also rank the methods on vpe (never mixed in otherwise)",
+    )
+
+
+def gt_free_from_args(
+    args: argparse.Namespace, roi_names: dict[int, str] | None = None
+) -> GroundTruthFree:
+    """The ground-truth-free scorer the options describe (same missing policy as the GT)."""
+    criteria: list[str] = []
+    for item in args.gt_free_criteria:
+        criteria.extend(comma_list(item))
+    unknown = [c for c in criteria if c not in GT_FREE_CRITERION_SETS]
+    if unknown:
+        raise ConfigurationError(
+            f"unknown ground-truth-free criterion set '{', '.join(unknown)}'; choose from "
+            + ", ".join(GT_FREE_CRITERION_SETS)
+        )
+    return GroundTruthFree(criteria, args.missing, roi_names=roi_names)
+
+
+def model_objectives(
+    results: Mapping[str, Scores], measures: Sequence[str], gt_free_too: bool = False
+) -> tuple[list[str], list[str], np.ndarray] | None:
+    """Methods, objective names and matrix: GT objectives, else (or if asked, also) vpe.
+
+    GT-free criteria are never objectives beside GT ones unless ``gt_free_too``; overlapping
+    legacy criteria never are. None when nothing is comparable.
+    """
+    first = next(iter(results.values()))
+    comparable = [c for c in first.criteria if c not in first.overlapping]
+    gt = [c for c in comparable if not is_gt_free(c)]
+    free = [c for c in comparable if is_gt_free(c)]
+    parts = []
+    if gt:
+        parts.append(objective_matrix(results, objective_measures(measures), gt))
+    if free and (gt_free_too or not gt):
+        parts.append(objective_matrix(results, ["vpe"], free))
+    if not parts:
+        return None
+    return (
+        parts[0][0],
+        [name for part in parts for name in part[1]],
+        np.hstack([part[2] for part in parts]),
     )

@@ -8,7 +8,7 @@ from typing import Any
 
 from dispeval_ros.cli.output import table
 from dispeval_ros.core import ModelResult
-from dispeval_ros.core.measures import measure_unit
+from dispeval_ros.core.measures import GT_FREE_PREFIX, applies, measure_unit
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 
@@ -49,19 +49,26 @@ def scores_text(
     overlapping: Sequence[str] = (),
     relative: bool = False,
 ) -> str:
-    """One table per criterion (split to the terminal's width): a row per method."""
+    """One table per criterion (split to the terminal's width): a row per method.
+
+    A criterion shows the measures defined on it: ground-truth-free criteria (``gtfree:``)
+    the GT-free measures and density, the others the GT measures.
+    """
     blocks = []
     methods = list(scores)
     criteria = list(scores[methods[0]]) if methods else []
-    header = ["method", "n", *(measure_header(m, relative) for m in measures)]
     for criterion in criteria:
+        shown = [m for m in measures if applies(m, criterion)]
+        header = ["method", "n", *(measure_header(m, relative) for m in shown)]
         rows = []
         for method in methods:
             values = scores[method][criterion]
-            rows.append([method, int(values["n"]), *(values[m] for m in measures)])
+            rows.append([method, int(values["n"]), *(values[m] for m in shown)])
         title = f"criterion: {criterion}"
         if criterion in overlapping:
             title += "  (legacy Middlebury criterion: overlaps the others)"
+        if criterion.startswith(GT_FREE_PREFIX):
+            title += "  (ground-truth-free: from the left and right images, no GT)"
         blocks.append(title + "\n" + fitted_tables(header, rows, keep=2))
     return "\n\n".join(blocks)
 
