@@ -132,7 +132,7 @@ def main() -> None:
         summary = [(c - d) / n if n else math.nan for c, d, n in totals]
         print(f"{dataset:<12} {'(pooled)':<34}" + "".join(f" {c:16.2f}" for c in summary))
         pooled[dataset] = [x for t in totals for x in t]
-    everything = np.sum([v for v in pooled.values()], axis=0).reshape(len(COLUMNS), 3)
+    everything = np.sum(list(pooled.values()), axis=0).reshape(len(COLUMNS), 3)
     print(
         f"{'all':<12} {'(pooled over every scene)':<34}"
         + "".join(f" {(c - d) / n:16.2f}" for c, d, n in everything)
