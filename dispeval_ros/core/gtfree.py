@@ -364,6 +364,32 @@ class GroundTruthFree:
             policy=self.missing,
         )
 
+    def criterion_names(self) -> tuple[str, ...]:
+        """The ``gtfree:`` criteria every scored frame has, in order (known without images)."""
+        names: list[str] = []
+        for name in self.criteria:
+            if name == "all":
+                names.append("all")
+            elif name == "texture":
+                names.extend(crit.TEXTURE)
+            elif self.roi_names:
+                names.extend((*(self.roi_names[v] for v in sorted(self.roi_names)), "unlabelled"))
+            else:
+                names.extend(("roi", "elsewhere"))
+        return tuple(GT_FREE_PREFIX + name for name in dict.fromkeys(names))
+
+    def empty(self) -> Scores:
+        """Scores of a frame whose images could not be used: the criteria with zero sums."""
+        criteria = self.criterion_names()
+        return Scores(
+            criteria=criteria,
+            measures=GT_FREE_SCORED,
+            sums=np.zeros((len(criteria), FIELDS), dtype=np.float64),
+            thresholds=self.thresholds,
+            relative=True,
+            policy=self.missing,
+        )
+
     def _coded(
         self,
         slot: str,
