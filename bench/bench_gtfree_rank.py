@@ -19,13 +19,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from dispeval_ros.core import Evaluator
-from dispeval_ros.core.gtfree import GroundTruthFree
+from dispeval_ros.core.gtfree import GroundTruthFree, concordance, kendall_tau
 from dispeval_ros.io import Scene, list_frames, read_stereo_pair
 from dispeval_ros.testbed.methods import default_methods
 
@@ -47,32 +47,6 @@ DATASETS: dict[str, Callable[[Path], list[Path]]] = {
     ),
 }
 COLUMNS = (("vpe", "bmp"), ("vpe", "mae"), ("vpe_valid", "mae"))
-
-
-def pair_signs(a: Sequence[float], b: Sequence[float]) -> tuple[int, int, int, int]:
-    """Concordant, discordant, pairs tied only in ``a``, pairs tied only in ``b``."""
-    concordant = discordant = ties_a = ties_b = 0
-    for i in range(len(a)):
-        for j in range(i + 1, len(a)):
-            da = np.sign(a[i] - a[j])
-            db = np.sign(b[i] - b[j])
-            if da == 0 and db != 0:
-                ties_a += 1
-            elif db == 0 and da != 0:
-                ties_b += 1
-            elif da * db > 0:
-                concordant += 1
-            elif da * db < 0:
-                discordant += 1
-    return concordant, discordant, ties_a, ties_b
-
-
-def kendall_tau_b(a: Sequence[float], b: Sequence[float]) -> float:
-    """Kendall's τ-b (ties in either ranking handled; nan when one ranking is constant)."""
-    concordant, discordant, ties_a, ties_b = pair_signs(a, b)
-    untied = concordant + discordant
-    denominator = math.sqrt((untied + ties_b) * (untied + ties_a))
-    return (concordant - discordant) / denominator if denominator else math.nan
 
 
 def scene_measures(scene: Scene) -> dict[str, dict[str, float]]:
@@ -119,8 +93,8 @@ def main() -> None:
                 }
                 cells = []
                 for column, (a, b) in enumerate(COLUMNS):
-                    cells.append(kendall_tau_b(values[a], values[b]))
-                    concordant, discordant, *_ = pair_signs(values[a], values[b])
+                    cells.append(kendall_tau(values[a], values[b]))
+                    concordant, discordant, *_ = concordance(values[a], values[b])
                     pairs = len(measures) * (len(measures) - 1) // 2
                     totals[column][0] += concordant
                     totals[column][1] += discordant

@@ -23,7 +23,7 @@ from test_real_scenes import kitti_devkit_interpolation
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.criteria import texture_set
 from dispeval_ros.core.evaluator import Evaluator
-from dispeval_ros.core.gtfree import GroundTruthFree, joined
+from dispeval_ros.core.gtfree import GroundTruthFree, concordance, joined, kendall_tau
 from dispeval_ros.core.measures import Scores
 from dispeval_ros.errors import InputError, ShapeMismatchError
 from dispeval_ros.io import load_scene, write_pfm
@@ -378,3 +378,13 @@ def test_eval_bad_images_are_one_line(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert re.search(message, err), err
+
+
+def test_kendall_tau_by_hand() -> None:
+    assert kendall_tau([1, 2, 3], [10, 20, 30]) == 1.0
+    assert kendall_tau([1, 2, 3], [3, 2, 1]) == -1.0
+    assert kendall_tau([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(4 / 6)  # 5 alike, 1 not
+    # a tie in the first ranking: τ-b = 2 / sqrt(2 · 3) (scipy.stats.kendalltau agrees)
+    assert kendall_tau([1, 1, 2], [1, 2, 3]) == pytest.approx(2 / math.sqrt(6))
+    assert math.isnan(kendall_tau([1, 1, 1], [1, 2, 3]))
+    assert concordance([1, 1, 2], [1, 2, 3]) == (2, 0, 1, 0)

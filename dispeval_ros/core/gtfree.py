@@ -439,3 +439,37 @@ def joined(gt: Scores | None, free: Scores | None) -> Scores:
         overlapping=gt.overlapping,
         policy=gt.policy,
     )
+
+
+def concordance(a: Sequence[float], b: Sequence[float]) -> tuple[int, int, int, int]:
+    """Pairs of items ordered alike and unlike by ``a`` and ``b``, and tied in one only.
+
+    ``(concordant, discordant, tied in a only, tied in b only)``; pairs tied in both count
+    nowhere.
+    """
+    concordant = discordant = ties_a = ties_b = 0
+    for i in range(len(a)):
+        for j in range(i + 1, len(a)):
+            da = np.sign(a[i] - a[j])
+            db = np.sign(b[i] - b[j])
+            if da == 0 and db != 0:
+                ties_a += 1
+            elif db == 0 and da != 0:
+                ties_b += 1
+            elif da * db > 0:
+                concordant += 1
+            elif da * db < 0:
+                discordant += 1
+    return concordant, discordant, ties_a, ties_b
+
+
+def kendall_tau(a: Sequence[float], b: Sequence[float]) -> float:
+    """Kendall's τ-b of two rankings of the same items (nan when either is constant).
+
+    How well a GT-free measure orders methods as a GT measure does: 1 the same order, 0
+    unrelated, −1 reversed. Ties in either ranking are handled (τ-b).
+    """
+    concordant, discordant, ties_a, ties_b = concordance(a, b)
+    untied = concordant + discordant
+    denominator = math.sqrt((untied + ties_b) * (untied + ties_a))
+    return (concordant - discordant) / denominator if denominator else math.nan
