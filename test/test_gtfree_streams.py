@@ -13,13 +13,12 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
-from sample_feed import sample_bag, sample_config
+from sample_feed import sample_bag, sample_config, stored_scores
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.gtfree import GroundTruthFree
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_from_msg, image_from_msg, image_to_msg, stamp_ns
-from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.live.core import CoreConfig, EvaluationCore
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_IMAGE, RIGHT_IMAGE
 
@@ -31,14 +30,7 @@ def run_bag(out: Path, *topics: str) -> dict[tuple[int, str], Any]:
     bag = sample_bag()
     methods = [a for n, t in sample_config(bag).methods.items() for a in ("--method", f"{n}={t}")]
     assert main(["bag", str(bag), *topics, *methods, "--out", str(out), "--quiet"]) == 0
-    with ResultsStore.open(out) as store:
-        (sequence,) = store.sequences()
-        assert store.problems() == []
-        return {
-            (stamp, method): scores
-            for stamp in store.stamps(sequence)
-            for method, scores in store.frame_scores(sequence, stamp).items()
-        }
+    return stored_scores(out)
 
 
 def direct_scores() -> dict[tuple[int, str], Any]:

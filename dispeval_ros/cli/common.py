@@ -151,12 +151,14 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
         nargs="+",
         default=list(DEFAULT_OBJECTIVE_MEASURES),
         metavar="M",
-        help=f"measures that form the objectives (default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)})",
+        help="measures that form the objectives, each on the criteria it is defined on "
+        f"(default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)}; vpe when there is no ground truth; "
+        "add vpe to rank on it beside the GT measures)",
     )
 
 
-def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """``--gt-free-criteria`` and ``--gt-free-objectives`` (measures from the images alone)."""
+def add_gt_free_criteria_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--gt-free-criteria``: the criterion sets of the ground-truth-free measures."""
     from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA
 
     parser.add_argument(
@@ -167,6 +169,11 @@ def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGrou
         help="criterion sets of the ground-truth-free measures (vpe, lrc): "
         f"{', '.join(GT_FREE_CRITERION_SETS)} (default: {' '.join(DEFAULT_GT_FREE_CRITERIA)})",
     )
+
+
+def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--gt-free-criteria`` and ``--gt-free-objectives`` (measures from the images alone)."""
+    add_gt_free_criteria_option(parser)
     parser.add_argument(
         "--gt-free-objectives",
         action="store_true",
@@ -174,19 +181,23 @@ def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGrou
     )
 
 
-def gt_free_from_args(
-    args: argparse.Namespace, roi_names: dict[int, str] | None = None
-) -> GroundTruthFree:
-    """The ground-truth-free scorer the options describe (same missing policy as the GT)."""
-    criteria: list[str] = []
-    for item in args.gt_free_criteria:
-        criteria.extend(comma_list(item))
+def gt_free_criteria(args: argparse.Namespace) -> list[str]:
+    """The ``--gt-free-criteria`` sets, checked."""
+    criteria = [name for item in args.gt_free_criteria for name in comma_list(item)]
     unknown = [c for c in criteria if c not in GT_FREE_CRITERION_SETS]
     if unknown:
         raise ConfigurationError(
             f"unknown ground-truth-free criterion set '{', '.join(unknown)}'; choose from "
             + ", ".join(GT_FREE_CRITERION_SETS)
         )
+    return criteria
+
+
+def gt_free_from_args(
+    args: argparse.Namespace, roi_names: dict[int, str] | None = None
+) -> GroundTruthFree:
+    """The ground-truth-free scorer the options describe (same missing policy as the GT)."""
+    criteria = gt_free_criteria(args)
     return GroundTruthFree(criteria, args.missing, roi_names=roi_names)
 
 

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
@@ -82,13 +81,7 @@ def add_stream_options(
         metavar="NAME=TOPIC",
         help="a method's right-view DisparityImage topic, for its left-right inconsistency (lrc)",
     )
-    topics.add_argument(
-        "--gt-free-criteria",
-        nargs="+",
-        default=list(DEFAULT_GT_FREE_CRITERIA),
-        metavar="SET",
-        help=f"criterion sets of vpe and lrc: all, texture (default: {' '.join(DEFAULT_GT_FREE_CRITERIA)})",
-    )
+    common.add_gt_free_criteria_option(topics)
     topics.add_argument(
         "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
     )
@@ -101,20 +94,7 @@ def add_stream_options(
     )
     common.add_evaluation_options(parser)
     run = parser.add_argument_group("run")
-    run.add_argument(
-        "--objectives",
-        choices=("sequence", "frame"),
-        default="sequence",
-        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
-    )
-    run.add_argument(
-        "--objective-measures",
-        nargs="+",
-        default=list(DEFAULT_OBJECTIVE_MEASURES),
-        metavar="M",
-        help="measures that form the objectives, each on the criteria it is defined on (default: "
-        "sze bmpre; vpe without ground truth; add vpe to rank on it beside the GT measures)",
-    )
+    common.add_objective_options(run)
     run.add_argument(
         "--out",
         type=Path,
@@ -159,9 +139,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         )
     if not has_gt and args.objective_measures == list(DEFAULT_OBJECTIVE_MEASURES):
         args.objective_measures = ["vpe"]  # without GT the models compare vpe
-    gt_free_criteria: list[str] = []
-    for item in args.gt_free_criteria:
-        gt_free_criteria.extend(common.comma_list(item))
+    gt_free_criteria = common.gt_free_criteria(args)
     if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
         args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
     evaluator = common.evaluator_from_args(args)
