@@ -388,3 +388,16 @@ def test_kendall_tau_by_hand() -> None:
     assert kendall_tau([1, 1, 2], [1, 2, 3]) == pytest.approx(2 / math.sqrt(6))
     assert math.isnan(kendall_tau([1, 1, 1], [1, 2, 3]))
     assert concordance([1, 1, 2], [1, 2, 3]) == (2, 0, 1, 0)
+
+
+def test_gt_free_criteria_are_checked(
+    capsys: pytest.CaptureFixture[str], pair_files: dict[str, Path]
+) -> None:
+    from dispeval_ros.errors import ConfigurationError
+
+    with pytest.raises(ConfigurationError, match="unknown ground-truth-free criterion set 'depth'"):
+        GroundTruthFree(("all", "depth"))
+    images = ["--left-image", str(pair_files["left"]), "--right-image", str(pair_files["right"])]
+    argv = ["eval", *images, "--est", str(pair_files["true"]), "--gt-free-criteria", "visibility"]
+    assert main(argv) == 2
+    assert "criterion set 'visibility'" in capsys.readouterr().err

@@ -198,3 +198,18 @@ def test_config_is_checked(options: dict[str, Any], message: str) -> None:
     config = sample_config(sample_bag())
     with pytest.raises(ConfigurationError, match=message):
         CoreConfig(**{**config.__dict__, **options})
+
+
+def test_roi_is_not_a_stream_criterion() -> None:
+    from dispeval_ros.errors import ConfigurationError
+
+    config = sample_config(sample_bag())
+    with pytest.raises(ConfigurationError, match="'roi' needs a mask"):
+        CoreConfig(
+            **{
+                **config.__dict__,
+                "left_image_topic": LEFT_IMAGE,
+                "right_image_topic": RIGHT_IMAGE,
+                "gt_free_criteria": ("all", "roi"),
+            }
+        )

@@ -281,11 +281,12 @@ class GroundTruthFree:
     ) -> None:
         if isinstance(criteria, str):
             criteria = (criteria,)
-        chosen = tuple(dict.fromkeys(c for c in criteria if c in GT_FREE_CRITERION_SETS))
-        if not chosen:
+        chosen = tuple(dict.fromkeys(criteria))
+        unknown = [c for c in chosen if c not in GT_FREE_CRITERION_SETS]
+        if unknown or not chosen:
             raise ConfigurationError(
-                "no criterion set that needs no ground truth; choose from "
-                + ", ".join(GT_FREE_CRITERION_SETS)
+                f"unknown ground-truth-free criterion set '{', '.join(unknown) or '(none)'}'; "
+                f"choose from {', '.join(GT_FREE_CRITERION_SETS)}"
             )
         if missing not in POLICIES:
             raise ConfigurationError(

@@ -146,6 +146,11 @@ class CoreConfig:
             raise ConfigurationError(f"method name '{reserved[0]}' is reserved")
         if self.gt_free:
             GroundTruthFree(self.gt_free_criteria, self.missing)  # checks the criteria
+            if "roi" in self.gt_free_criteria:
+                raise ConfigurationError(
+                    "the ground-truth-free criterion set 'roi' needs a mask: not available on "
+                    "streams; choose all, texture"
+                )
         if self.gt_kind == "pointcloud":
             if self.left_info_topic is None:
                 raise ConfigurationError(
