@@ -224,6 +224,8 @@ def test_bad_images_are_one_line() -> None:
         free.pair(np.zeros((10, 12, 3), np.uint8), grey)
     with pytest.raises(InputError, match="8-bit grey image"):
         free.pair(grey, grey.astype(np.uint16))
+    with pytest.raises(InputError, match="1 px wide: at least 2"):
+        free.pair(grey[:, :1], grey[:, :1])
     with pytest.raises(ShapeMismatchError, match="right image is 11×10"):
         free.pair(grey, np.zeros((10, 11), np.uint8))
     with pytest.raises(ShapeMismatchError, match="estimate is 12×9"):

@@ -126,119 +126,126 @@ def photometric_sums(
     (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
     ``ignore``. ``runs`` comes from :func:`cell_runs`. ``right_coded`` is the right-view
     estimate coded the same way, or 0×0 for none.
+
+    Per row: the z-buffer, then every pixel's geometry (target column, interpolation weight,
+    whether it counts) in one pass without gathers, then per run of one cell the terms that
+    gather from the right image and the z-buffer: the passes vectorise, a fused loop did not.
     """
+    starts, run_cells, row_first = runs
     height, width = left.shape
+    floor = -np.inf if include_missing else 0.0  # coded values above it take part
     zbuffer = np.empty(width, dtype=np.float32)
+    geometry = _row_buffers(width)
     check = right_coded.shape[0] == height
     for y in range(height):
         _row_zbuffer(coded[y], include_missing, zbuffer)
-        other = right_coded[y] if check else coded[y]
-        _row_runs(
-            left[y],
-            right[y],
-            coded[y],
-            other,
-            check,
-            include_missing,
-            zbuffer,
-            runs,
-            y,
-            tolerance,
-            lrc_threshold,
-            sums,
-        )
+        _row_geometry(coded[y], floor, geometry)
+        for run in range(row_first[y], row_first[y + 1]):
+            cell = run_cells[run]
+            if cell < 0:
+                continue
+            start = starts[run]
+            stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
+            n_valid, n_vpe, sum_vpe = _run_vpe(
+                left[y], right[y], coded[y], zbuffer, geometry, start, stop, tolerance
+            )
+            sums[cell, k.FIELD_N] += stop - start
+            sums[cell, k.FIELD_VALID] += n_valid
+            sums[cell, k.FIELD_N_VPE] += n_vpe
+            sums[cell, k.FIELD_SUM_VPE] += sum_vpe
+            if check:
+                n_lrc, n_bad = _run_lrc(right_coded[y], floor, geometry, start, stop, lrc_threshold)
+                sums[cell, k.FIELD_N_LRC] += n_lrc
+                sums[cell, k.FIELD_LRC] += n_bad
 
 
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
-def _row_runs(
-    left: np.ndarray,
-    right: np.ndarray,
+@njit(cache=True, nogil=True)
+def _row_buffers(
+    width: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Row buffers: disparity, left interpolation column, its weight, rounded target, counted."""
+    return (
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+        np.empty(width, dtype=np.bool_),
+    )
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
+def _row_geometry(
     coded: np.ndarray,
-    right_coded: np.ndarray,
-    check: bool,
-    include_missing: bool,
-    zbuffer: np.ndarray,
-    runs: tuple[np.ndarray, np.ndarray, np.ndarray],
-    y: int,
-    tolerance: float,
-    lrc_threshold: float,
-    sums: np.ndarray,
+    floor: float,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:  # pragma: no cover - compiled
-    """Add the terms of every run of one row to its cell's sums."""
-    starts, run_cells, row_first = runs
-    width = left.shape[0]
-    for run in range(row_first[y], row_first[y + 1]):
-        cell = run_cells[run]
-        if cell < 0:
-            continue
-        start = starts[run]
-        stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
-        terms = _run_terms(
-            left,
-            right,
-            coded,
-            right_coded,
-            include_missing,
-            zbuffer,
-            start,
-            stop,
-            width - 1,
-            tolerance,
-            lrc_threshold,
-        )
-        sums[cell, k.FIELD_N] += stop - start
-        sums[cell, k.FIELD_VALID] += terms[0]
-        sums[cell, k.FIELD_N_VPE] += terms[1]
-        sums[cell, k.FIELD_SUM_VPE] += terms[2]
-        if check:
-            sums[cell, k.FIELD_N_LRC] += terms[3]
-            sums[cell, k.FIELD_LRC] += terms[4]
+    """Where each pixel of one row lands in the right view (``x − d``), clamped to the row.
+
+    The interpolation column ``x0`` stops at ``W − 2`` so that ``x0 + 1`` is always inside
+    (``W ≥ 2``): at ``x − d = W − 1`` the weight is then 1, the same value.
+    """
+    disparity, column, weight, target, counted = geometry
+    last = coded.shape[0] - 1
+    for x in range(coded.shape[0]):
+        raw = coded[x]
+        d = np.float64(abs(raw))
+        source = x - d
+        clamped = min(max(source, 0.0), np.float64(last))
+        x0 = min(int(clamped), last - 1)  # images are at least 2 px wide
+        disparity[x] = d
+        column[x] = x0
+        weight[x] = clamped - x0
+        target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
+        counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
 
 
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
-def _run_terms(
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
+def _run_vpe(
     left: np.ndarray,
     right: np.ndarray,
     coded: np.ndarray,
-    right_coded: np.ndarray,
-    include_missing: bool,
     zbuffer: np.ndarray,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     start: int,
     stop: int,
-    last: int,
     tolerance: float,
-    lrc_threshold: float,
-) -> tuple[float, float, float, float, float]:  # pragma: no cover - compiled
-    """Valid estimates, vpe count and sum, lrc checked and inconsistent over ``[start, stop)``."""
-    floor = -np.inf if include_missing else 0.0  # coded values above it take part
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Valid estimates, pixels in vpe and their Σ|I_L − I_R(x − d)| over ``[start, stop)``."""
+    disparity, column, weight, target, counted = geometry
     n_valid = 0.0
     n_vpe = 0.0
     sum_vpe = 0.0
-    n_lrc = 0.0
-    n_bad = 0.0
     for x in range(start, stop):  # branch-free: holes and occlusions are not predictable
-        raw = coded[x]
-        valid = raw > 0.0  # flags are values, not branches: a branch on one costs 2× the time
-        d = np.float64(abs(raw))
-        source = x - d
-        counted = (raw > floor) & (source >= 0.0) & (source <= last)
-        clamped = min(max(source, 0.0), np.float64(last))
-        target = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
-        other = right_coded[target]  # without a right-view estimate: discarded by the caller
-        checked = counted & (other > floor)
-        inconsistent = checked & (abs(d - abs(other)) > lrc_threshold)
-        visible = counted & ~(zbuffer[target] > d + tolerance)
-        x0 = min(int(clamped), last)
-        x1 = min(x0 + 1, last)
+        visible = counted[x] & ~(zbuffer[target[x]] > disparity[x] + tolerance)
+        x0 = column[x]
         low = np.float64(right[x0])
-        predicted = low + (clamped - x0) * (np.float64(right[x1]) - low)
+        predicted = low + weight[x] * (np.float64(right[x0 + 1]) - low)
         difference = abs(np.float64(left[x]) - predicted)
-        n_valid += 1.0 if valid else 0.0
+        n_valid += 1.0 if coded[x] > 0.0 else 0.0
         n_vpe += 1.0 if visible else 0.0
         sum_vpe += difference if visible else 0.0
+    return n_valid, n_vpe, sum_vpe
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _run_lrc(
+    right_coded: np.ndarray,
+    floor: float,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    start: int,
+    stop: int,
+    lrc_threshold: float,
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Pixels left-right checked and the inconsistent ones among them over ``[start, stop)``."""
+    disparity, _, _, target, counted = geometry
+    n_lrc = 0.0
+    n_bad = 0.0
+    for x in range(start, stop):
+        other = right_coded[target[x]]
+        checked = counted[x] & (other > floor)
         n_lrc += 1.0 if checked else 0.0
-        n_bad += 1.0 if inconsistent else 0.0
-    return n_valid, n_vpe, sum_vpe, n_lrc, n_bad
+        n_bad += 1.0 if checked & (abs(disparity[x] - abs(other)) > lrc_threshold) else 0.0
+    return n_lrc, n_bad
 
 
 @dataclass(frozen=True)
@@ -306,6 +313,8 @@ class GroundTruthFree:
         """Check the images and build the GT-free criteria from the left one (once per frame)."""
         left8 = grey8(left, "the left image")
         right8 = grey8(right, "the right image")
+        if left8.shape[1] < 2:
+            raise InputError(f"the images are {left8.shape[1]} px wide: at least 2 are needed")
         if left8.shape != right8.shape:
             raise ShapeMismatchError(
                 f"the right image is {right8.shape[1]}×{right8.shape[0]} but the left image is "
