@@ -61,8 +61,14 @@ def bag_reference(bag: Path, out: Path) -> dict[tuple[int, str], Any]:
     """What ``dispeval bag`` stores for ``bag``: (GT stamp, method) → Scores."""
     args = ["bag", str(bag), *topic_args(sample_config(bag)), "--out", str(out), "--quiet"]
     assert main(args) == 0
+    return stored_scores(out, problems_allowed=True)
+
+
+def stored_scores(out: Path, problems_allowed: bool = False) -> dict[tuple[int, str], Any]:
+    """A one-sequence results folder's frames: (stamp, method) → Scores."""
     with ResultsStore.open(out) as store:
         (sequence,) = store.sequences()
+        assert problems_allowed or store.problems() == []
         return {
             (stamp, method): scores
             for stamp in store.stamps(sequence)

@@ -37,7 +37,9 @@ from dispeval_ros.live.vectors import StatusRecord, scores_from_status
 from dispeval_ros.offline.make_bag import (
     CLOUD_TOPIC,
     GT_TOPIC,
+    LEFT_IMAGE,
     LEFT_INFO,
+    RIGHT_IMAGE,
     RIGHT_INFO,
     TF_STATIC_TOPIC,
 )
@@ -428,8 +430,17 @@ def test_a_looping_stream_makes_new_sequences(
 GT_MODES = {
     "image": ["--gt", GT_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO],
     "cloud": ["--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO],
+    "images": ["--gt", GT_TOPIC, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE],
+    "no-gt": ["--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE],
 }
-"""Ground truth as an image, or from the LiDAR with the extrinsic from /tf_static."""
+"""Ground truth as an image, or from the LiDAR with the extrinsic from /tf_static; with the
+rectified images too (ground-truth-free measures), or the images alone."""
+GT_MODE_TOPICS = {
+    "image": [GT_TOPIC, LEFT_INFO, RIGHT_INFO],
+    "cloud": [CLOUD_TOPIC, TF_STATIC_TOPIC, LEFT_INFO, RIGHT_INFO],
+    "images": [GT_TOPIC, LEFT_IMAGE, RIGHT_IMAGE],
+    "no-gt": [LEFT_IMAGE, RIGHT_IMAGE],
+}
 
 
 @pytest.fixture(scope="module")
@@ -482,8 +493,7 @@ def test_live_and_play_over_dds_match_dispeval_bag(
     reference = references(gt_mode)
     domain = fresh_domain()
     gt_stamps = sorted({stamp for stamp, _ in reference})
-    gt_topics = [GT_TOPIC] if gt_mode == "image" else [CLOUD_TOPIC, TF_STATIC_TOPIC]
-    topics = [*gt_topics, LEFT_INFO, RIGHT_INFO, *methods.values()]
+    topics = [*GT_MODE_TOPICS[gt_mode], *methods.values()]
     with BagSource(sample) as source:
         published = sum(source.topics[topic].count for topic in topics)
     dds = ["--domain-id", str(domain), "--dds-config", "localhost"]

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
+from sample_feed import stored_scores
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.projection import CloudFilter, project_cloud, rectified_projection
@@ -61,14 +62,7 @@ def _run_bag(drive: Path, out: Path, *extra: str) -> dict[tuple[int, str], Any]:
     for name in METHODS:
         args += ["--method", f"{name}={disparity_topic(name)}"]
     assert main([*args, *extra, "--out", str(out), "--quiet"]) == 0
-    with ResultsStore.open(out) as store:
-        (sequence,) = store.sequences()
-        assert store.problems() == []
-        return {
-            (stamp, method): scores
-            for stamp in store.stamps(sequence)
-            for method, scores in store.frame_scores(sequence, stamp).items()
-        }
+    return stored_scores(out)
 
 
 def test_bag_with_cloud_gt_scores_like_a_direct_projection(drive: Path, tmp_path: Path) -> None:

@@ -50,11 +50,11 @@ convert = importlib.import_module("dispeval_ros.ros.convert")
 evaluator_node = importlib.import_module("dispeval_ros.ros.evaluator")
 summarizer_node = importlib.import_module("dispeval_ros.ros.summarizer")
 
-if importlib.util.find_spec("cyclonedds") is None:
-    reason = "the Cyclone DDS Python binding is not installed (pip install 'dispeval_ros[dds]')"
-    if ROS_REQUIRED:
-        pytest.fail(f"DISPEVAL_REQUIRE_ROS=1 but {reason}", pytrace=False)
-    pytest.skip(reason, allow_module_level=True)
+HAVE_CYCLONE = importlib.util.find_spec("cyclonedds") is not None
+NO_CYCLONE = "the Cyclone DDS Python binding is not installed (pip install 'dispeval_ros[dds]')"
+# A marker, never a skip while importing: in a ROS 2 workspace launch_testing's pytest plugin
+# imports every test module, and a skip there would end the collection of every test.
+pytestmark = pytest.mark.skipif(not HAVE_CYCLONE and not ROS_REQUIRED, reason=NO_CYCLONE)
 
 TIMEOUT = 90.0
 RELIABLE = rclpy_qos.QoSProfile(
@@ -72,6 +72,8 @@ def domain(offset: int) -> int:
 
 @pytest.fixture
 def ros_factory() -> Iterator[Any]:
+    if not HAVE_CYCLONE:
+        pytest.fail(f"DISPEVAL_REQUIRE_ROS=1 but {NO_CYCLONE}", pytrace=False)
     made: list[Ros] = []
 
     def make(domain_id: int) -> Ros:

@@ -853,6 +853,37 @@ def cloud_msg(points: np.ndarray, stamp: int) -> Any:
     )
 
 
+def publish_frame(
+    ros: Ros, pubs: dict[str, Any], core: EvaluationCore, scores: list[Any], messages: list[Any]
+) -> list[FrameResult]:
+    """Publish one frame's messages to the node and push them into ``core``; wait for its scores.
+
+    Returns what the core scored for it.
+    """
+    before = len(scores)
+    expected: list[FrameResult] = []
+    for topic, msg in messages:
+        pubs[topic].publish(msg)
+        expected.extend(core.score(frame_set) for frame_set in core.push(topic, msg))
+    assert ros.spin_until(lambda: len(scores) == before + 1), f"no scores for frame {before}"
+    return expected
+
+
+def statuses_against(
+    scores: list[Any], expected: list[FrameResult], method: str
+) -> list[tuple[Any, FrameResult]]:
+    """Each published status of ``method`` with the core's result, their sums checked equal."""
+    assert len(expected) == len(scores)
+    pairs = []
+    for array, result in zip(scores, expected, strict=True):
+        status = statuses(array)[method]
+        assert convert.status_level(status) == OK, status.message
+        rebuilt = scores_from_status(convert.status_values(status))
+        np.testing.assert_array_equal(rebuilt.sums, result.scores[method].sums)
+        pairs.append((status, result))
+    return pairs
+
+
 def test_point_cloud_ground_truth_equals_the_core(ros: Ros) -> None:
     topics = Topics("cloud")
     node = ros.evaluator(
@@ -891,16 +922,11 @@ def test_point_cloud_ground_truth_equals_the_core(ros: Ros) -> None:
         projected = core.cloud_disparity(cloud, core.camera(), (H, W)).disparity
         assert (projected > 0).sum() > 200
         disparity = disparity_msg(estimate(projected, 0.3, k), stamp)
-        for topic, msg in ((topics.gt, cloud), (topics.good, disparity)):
-            pubs[topic].publish(msg)
-            expected.extend(core.score(frame_set) for frame_set in core.push(topic, msg))
-        assert ros.spin_until(lambda k=k: len(scores) == k + 1), f"no scores for frame {k}"
-    assert len(expected) == 3
-    for array, result in zip(scores, expected, strict=True):
-        status = statuses(array)["good"]
-        assert convert.status_level(status) == OK, status.message
+        expected += publish_frame(
+            ros, pubs, core, scores, [(topics.gt, cloud), (topics.good, disparity)]
+        )
+    for status, result in statuses_against(scores, expected, "good"):
         rebuilt = scores_from_status(convert.status_values(status))
-        np.testing.assert_array_equal(rebuilt.sums, result.scores["good"].sums)
         assert "0-10m" in rebuilt.criteria
         assert "irmse" in result.scores["good"].measures
 
@@ -1027,3 +1053,72 @@ def test_tf2_ros_lookup_glue(monkeypatch: pytest.MonkeyPatch) -> None:
     assert "cloud frame 'os_lidar'" in message
     assert "camera frame 'stereo_left'" in message
     assert "Frame velodyne exists with parent base_link." in message
+
+
+# -- ground-truth-free measures from the rectified images ---------------------------------------
+
+
+def stereo_images(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A textured left image, the right one warped from it by a slanted plane, its disparity."""
+    rows, columns = np.mgrid[0:H, 0:W].astype(np.float64)
+    disparity = 6.0 + 0.05 * columns + 0.5 * k
+
+    def texture(x: np.ndarray) -> np.ndarray:
+        return 128 + 60 * np.sin(0.45 * x + 0.3 * rows) + 30 * np.cos(0.21 * x - 0.5 * rows)
+
+    left = np.clip(np.round(texture(columns)), 0, 255).astype(np.uint8)
+    source = (columns + 6.0 + 0.5 * k) / (1 - 0.05)  # x with x − d(x) = u
+    right = np.clip(np.round(texture(source)), 0, 255).astype(np.uint8)
+    return left, right, disparity.astype(np.float32)
+
+
+@pytest.mark.parametrize("with_gt", [True, False], ids=["beside-gt", "no-gt"])
+def test_gt_free_measures_equal_the_core(ros: Ros, with_gt: bool) -> None:
+    topics = Topics(f"images_{int(with_gt)}")
+    left_topic, right_topic = f"{topics.gt}_left_image", f"{topics.gt}_right_image"
+    right_view = f"{topics.good}_right"
+    node = ros.evaluator(
+        methods=[f"good:{topics.good}"],
+        gt_topic=topics.gt if with_gt else "",
+        gt_kind="disparity" if with_gt else "none",
+        left_image_topic=left_topic,
+        right_image_topic=right_topic,
+        right_views=[f"good:{right_view}"],
+    )
+    assert node.config.gt_free
+    types = {
+        left_topic: sensor_msgs.Image,
+        right_topic: sensor_msgs.Image,
+        topics.good: stereo_msgs.DisparityImage,
+        right_view: stereo_msgs.DisparityImage,
+        **({topics.gt: sensor_msgs.Image} if with_gt else {}),
+    }
+    pubs = {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, list(pubs)))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    core = EvaluationCore(node.config)
+    expected: list[FrameResult] = []
+    for k in range(3):
+        stamp = START_NS + k * FRAME_NS
+        left, right, disparity = stereo_images(k)
+        messages = [
+            (left_topic, image_msg(left, stamp, "mono8")),
+            (right_topic, image_msg(right, stamp, "mono8")),
+            (right_view, disparity_msg(np.roll(disparity, -6, axis=1), stamp)),
+            (topics.good, disparity_msg(estimate(disparity, 0.3, k), stamp)),
+        ]
+        if with_gt:
+            messages.insert(0, (topics.gt, image_msg(disparity, stamp)))
+        expected += publish_frame(ros, pubs, core, scores, messages)
+    for status, result in statuses_against(scores, expected, "good"):
+        values = dict(convert.status_values(status))
+        assert "gtfree:textured/vpe" in values
+        assert "gtfree:all/sze" not in values  # GT measures stay off the gtfree: criteria
+        assert ("all/vpe" in values) is False
+        rebuilt = scores_from_status(convert.status_values(status))
+        assert rebuilt["gtfree:all"]["vpe"] == result.scores["good"]["gtfree:all"]["vpe"]
+        assert 0 < rebuilt["gtfree:all"]["lrc"] < 100
+        assert ("all" in rebuilt.criteria) is with_gt

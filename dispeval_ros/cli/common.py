@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator
+import numpy as np
+
+from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator, Scores
+from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
+from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
@@ -147,7 +151,72 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
         nargs="+",
         default=list(DEFAULT_OBJECTIVE_MEASURES),
         metavar="M",
-        help=f"measures that form the objectives (default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)})",
+        help="measures that form the objectives, each on the criteria it is defined on "
+        f"(default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)}; vpe when there is no ground truth; "
+        "add vpe to rank on it beside the GT measures)",
+    )
+
+
+def add_gt_free_criteria_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--gt-free-criteria``: the criterion sets of the ground-truth-free measures."""
+    from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA
+
+    parser.add_argument(
+        "--gt-free-criteria",
+        nargs="+",
+        default=list(DEFAULT_GT_FREE_CRITERIA),
+        metavar="SET",
+        help="criterion sets of the ground-truth-free measures (vpe, lrc): "
+        f"{', '.join(GT_FREE_CRITERION_SETS)} (default: {' '.join(DEFAULT_GT_FREE_CRITERIA)})",
+    )
+
+
+def add_gt_free_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--gt-free-criteria`` and ``--gt-free-objectives`` (measures from the images alone)."""
+    add_gt_free_criteria_option(parser)
+    parser.add_argument(
+        "--gt-free-objectives",
+        action="store_true",
+        help="with ground truth, also rank the methods on vpe (never mixed in otherwise)",
+    )
+
+
+def gt_free_criteria(args: argparse.Namespace) -> list[str]:
+    """The ``--gt-free-criteria`` sets (checked by :class:`GroundTruthFree`)."""
+    return [name for item in args.gt_free_criteria for name in comma_list(item)]
+
+
+def gt_free_from_args(
+    args: argparse.Namespace, roi_names: dict[int, str] | None = None
+) -> GroundTruthFree:
+    """The ground-truth-free scorer the options describe (same missing policy as the GT)."""
+    criteria = gt_free_criteria(args)
+    return GroundTruthFree(criteria, args.missing, roi_names=roi_names)
+
+
+def model_objectives(
+    results: Mapping[str, Scores], measures: Sequence[str], gt_free_too: bool = False
+) -> tuple[list[str], list[str], np.ndarray] | None:
+    """Methods, objective names and matrix: GT objectives, else (or if asked, also) vpe.
+
+    GT-free criteria are never objectives beside GT ones unless ``gt_free_too``; overlapping
+    legacy criteria never are. None when nothing is comparable.
+    """
+    first = next(iter(results.values()))
+    comparable = [c for c in first.criteria if c not in first.overlapping]
+    gt = [c for c in comparable if not is_gt_free(c)]
+    free = [c for c in comparable if is_gt_free(c)]
+    parts = []
+    if gt:
+        parts.append(objective_matrix(results, objective_measures(measures), gt))
+    if free and (gt_free_too or not gt):
+        parts.append(objective_matrix(results, ["vpe"], free))
+    if not parts:
+        return None
+    return (
+        parts[0][0],
+        [name for part in parts for name in part[1]],
+        np.hstack([part[2] for part in parts]),
     )
 
 

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dispeval_ros.cli.output import print_json
+from dispeval_ros.cli.output import print_json, table
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
@@ -66,7 +66,13 @@ def replay_sample(args: argparse.Namespace) -> int:
     from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.live.core import CoreConfig
-    from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
+    from dispeval_ros.offline.make_bag import (
+        GT_TOPIC,
+        LEFT_IMAGE,
+        LEFT_INFO,
+        RIGHT_IMAGE,
+        RIGHT_INFO,
+    )
     from dispeval_ros.offline.records import record_bag_provenance
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
     from dispeval_ros.offline.summary import summarize
@@ -83,7 +89,12 @@ def replay_sample(args: argparse.Namespace) -> int:
             if info.msgtype == "stereo_msgs/msg/DisparityImage"
         }
     config = CoreConfig(
-        methods=methods, gt_topic=GT_TOPIC, left_info_topic=LEFT_INFO, right_info_topic=RIGHT_INFO
+        methods=methods,
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+        left_image_topic=LEFT_IMAGE,
+        right_image_topic=RIGHT_IMAGE,
     )
     record = {
         "bag": str(bag),
@@ -91,6 +102,7 @@ def replay_sample(args: argparse.Namespace) -> int:
         "criteria": list(config.criteria),
         "gt_topic": GT_TOPIC,  # recorded so that `dispeval report --bag` can re-score frames
         "camera_info": [LEFT_INFO, RIGHT_INFO],
+        "images": [LEFT_IMAGE, RIGHT_IMAGE],
     }
     progress = Progress("dispeval demo", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
@@ -113,10 +125,12 @@ def replay_sample(args: argparse.Namespace) -> int:
         document = {"results": str(out), "bag": str(bag), "report": str(report)}
         if robot is not None:
             document["robot"] = robot.to_dict()  # type: ignore[assignment]
+        document["gt_free_agreement"] = gt_free_agreement(summary)  # type: ignore[assignment]
         print_json({**document, **summary.to_dict(), "provenance": provenance})
         return 0
     print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
     print(run_summary_text(summary, problems))
+    print("\n" + gt_free_text(summary))
     if robot is not None:
         print("\n" + robot_text(summary, robot))
     print(
@@ -196,6 +210,47 @@ def robot_text(dense: RunSummary, lidar: RunSummary) -> str:
         "/tf_static, parallax filter 7,0.1), criterion all, summed over the common frames\n"
         + "\n".join(lines)
         + f"\nby LiDAR mae: {', '.join(ranking)}"
+    )
+
+
+AGREEMENT_GT = ("bmp", "mae")
+"""GT measures the view-prediction error's ranking is compared with."""
+
+
+def gt_free_agreement(summary: RunSummary) -> dict[str, float]:
+    """Kendall τ between the methods' vpe and each GT measure (sequence totals, all pixels)."""
+    from dispeval_ros.core.gtfree import kendall_tau
+
+    scores = summary.sequences[0].scores
+    vpe = [s["gtfree:all"]["vpe"] for s in scores.values()]
+    return {
+        f"tau_vpe_{name}": kendall_tau(vpe, [s["all"][name] for s in scores.values()])
+        for name in AGREEMENT_GT
+    }
+
+
+def gt_free_text(summary: RunSummary) -> str:
+    """Per method the GT measures beside the ground-truth-free ones, and their agreement."""
+    scores = summary.sequences[0].scores
+    header = ["method", "bmp [%]", "mae [px]", "vpe all", "vpe textured", "vpe textureless"]
+    rows = [
+        [
+            method,
+            s["all"]["bmp"],
+            s["all"]["mae"],
+            s["gtfree:all"]["vpe"],
+            s["gtfree:textured"]["vpe"],
+            s["gtfree:textureless"]["vpe"],
+        ]
+        for method, s in sorted(scores.items(), key=lambda item: item[1]["gtfree:all"]["vpe"])
+    ]
+    agreement = gt_free_agreement(summary)
+    return (
+        "ground-truth-free measures beside the GT ones (vpe in grey levels, from the left and "
+        "right images only; criterion all, summed over the common frames), by vpe:\n"
+        + table(header, rows)
+        + "\nagreement with the GT ranking (Kendall τ over the methods): "
+        + ", ".join(f"vpe vs {name} {agreement[f'tau_vpe_{name}']:+.2f}" for name in AGREEMENT_GT)
     )
 
 

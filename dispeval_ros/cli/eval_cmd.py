@@ -12,8 +12,8 @@ from dispeval_ros.cli import common, protocol_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, Scores, evaluate_models
+from dispeval_ros.core.gtfree import GT_FREE_PREFIX, GT_FREE_SCORED, is_gt_free, joined
 from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
-from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError, DispevalError
 
 if TYPE_CHECKING:
@@ -31,7 +31,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "methods with A* Groups over the SZE and BMPRE objectives of every criterion.",
     )
     source = parser.add_argument_group("inputs")
-    source.add_argument("--gt", type=Path, help="ground-truth disparity (PFM, PNG, NPY/NPZ)")
+    source.add_argument(
+        "--gt",
+        type=Path,
+        help="ground-truth disparity (PFM, PNG, NPY/NPZ); may be left out with --left-image and "
+        "--right-image (ground-truth-free measures only)",
+    )
     source.add_argument(
         "--est",
         action="append",
@@ -64,6 +69,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="V=NAME,...",
         help="name the label image's values, e.g. 1=road,2=vehicle",
     )
+    free = parser.add_argument_group("ground-truth-free measures (vpe, lrc)")
+    free.add_argument("--left-image", type=Path, help="the left rectified image (8 bit)")
+    free.add_argument("--right-image", type=Path, help="the right rectified image (8 bit)")
+    free.add_argument(
+        "--gt-free",
+        action="store_true",
+        help="with --scene: score vpe on the scene's own left and right images",
+    )
+    free.add_argument(
+        "--est-right",
+        action="append",
+        default=[],
+        metavar="NAME=FILE",
+        help="a method's right-view disparity, for its left-right inconsistency (lrc)",
+    )
+    common.add_gt_free_options(free)
     common.add_evaluation_options(parser)
     common.add_camera_options(parser)
     protocol_eval.add_options(parser)
@@ -90,6 +111,21 @@ def _roi_names(text: str | None) -> dict[int, str] | None:
             raise ConfigurationError(f"--roi-labels entry '{part}' is not VALUE=NAME (e.g. 1=road)")
         names[int(value)] = name
     return names
+
+
+def _image_files(args: argparse.Namespace, scene: Scene | None) -> tuple[Path, Path] | None:
+    """The left and right image files of the ground-truth-free measures, if any."""
+    if (args.left_image is None) != (args.right_image is None):
+        raise ConfigurationError("give both --left-image and --right-image, or neither")
+    if args.left_image is not None:
+        return args.left_image, args.right_image
+    if args.gt_free:
+        if scene is None:
+            raise ConfigurationError("--gt-free reads a scene's images: give --scene DIR")
+        if scene.left is None or scene.right is None:
+            raise ConfigurationError(f"{args.scene}: the scene has no left and right images")
+        return scene.left, scene.right
+    return None
 
 
 def _scene_files(scene: Scene) -> list[Path]:
@@ -136,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
     masks: dict[str, np.ndarray] = {}
     gt_right = None
     inputs: list[Path] = []
+    scene = None
     if args.scene is not None:
         scene = load_scene(args.scene)
         inputs += _scene_files(scene)
@@ -151,8 +188,14 @@ def run(args: argparse.Namespace) -> int:
         gt = read_disparity(args.gt, scale=args.gt_scale)
         gt_name = str(args.gt)
         inputs.append(args.gt)
+    elif args.left_image is None:
+        raise ConfigurationError(
+            "give the ground truth with --gt FILE or --scene DIR, or the rectified images with "
+            "--left-image FILE --right-image FILE for the ground-truth-free measures"
+        )
     else:
-        raise ConfigurationError("give the ground truth with --gt FILE or --scene DIR")
+        gt, gt_name = None, ""
+    pair_files = _image_files(args, scene)
     camera = common.camera_from_args(args) or camera
     for spec in args.mask:
         name, path = _named(spec)
@@ -163,11 +206,24 @@ def run(args: argparse.Namespace) -> int:
     roi = read_mask(args.roi) if args.roi is not None else None
     inputs += [p for p in (args.gt_right, args.roi, args.calib) if p is not None]
 
-    evaluator = common.evaluator_from_args(args, _roi_names(args.roi_labels))
-    try:
-        reference = evaluator.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
-    except DispevalError as error:
-        raise type(error)(f"{gt_name}: {error}") from None
+    roi_names = _roi_names(args.roi_labels)
+    evaluator = common.evaluator_from_args(args, roi_names)
+    reference = None
+    if gt is not None:
+        try:
+            reference = evaluator.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
+        except DispevalError as error:
+            raise type(error)(f"{gt_name}: {error}") from None
+    free, pair = None, None
+    if pair_files is not None:
+        from dispeval_ros.io.files import read_stereo_pair
+
+        free = common.gt_free_from_args(args, roi_names)
+        pair = free.pair(*read_stereo_pair(*pair_files), roi=roi)
+        inputs += list(pair_files)
+    right_estimates = dict(_named(spec) for spec in args.est_right)
+    if right_estimates and free is None:
+        raise ConfigurationError("--est-right needs the images (--left-image/--right-image)")
     results: dict[str, Scores] = {}
     for spec in args.est:
         name, path = _named(spec)
@@ -175,26 +231,47 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigurationError(
                 f"two estimates are named '{name}'; use NAME=FILE to tell them apart"
             )
+        current = path
         try:
-            results[name] = evaluator.score(reference, read_disparity(path, scale=args.est_scale))
+            estimate = read_disparity(path, scale=args.est_scale)
             inputs.append(path)
+            gt_scores = None if reference is None else evaluator.score(reference, estimate)
+            free_scores = None
+            if free is not None and pair is not None:
+                right_file = right_estimates.pop(name, None)
+                est_right = None
+                if right_file is not None:
+                    current = right_file
+                    est_right = read_disparity(right_file, scale=args.est_scale)
+                    inputs.append(right_file)
+                free_scores = free.score(pair, estimate, est_right=est_right)
+            results[name] = joined(gt_scores, free_scores)
         except DispevalError as error:
             message = str(error)
-            raise type(error)(message if str(path) in message else f"{path}: {message}") from None
+            raise type(error)(
+                message if str(current) in message else f"{current}: {message}"
+            ) from None
+    if right_estimates:
+        raise ConfigurationError(
+            f"--est-right names no --est method: {', '.join(sorted(right_estimates))}"
+        )
 
-    measures = list(evaluator.measures)
-    objectives_from = common.objective_measures(measures)
+    measures = list(evaluator.measures) if reference is not None else []
     first = next(iter(results.values()))
-    comparable = [c for c in first.criteria if c not in first.overlapping]
     model = None
     no_model = ""
-    if len(results) > 1 and not comparable:
+    objectives = (
+        common.model_objectives(results, measures, args.gt_free_objectives)
+        if len(results) > 1
+        else None
+    )
+    if len(results) > 1 and objectives is None:
         no_model = (
             "no A* Groups: the legacy criteria overlap (a point counts in several), so the models "
             "need a partition; add --criteria all (or visibility, depth) to compare the methods"
         )
-    elif len(results) > 1:
-        methods, names, matrix = objective_matrix(results, objectives_from, comparable)
+    elif objectives is not None:
+        methods, names, matrix = objectives
         model = (names, evaluate_models(methods, matrix))
     if args.json:
         document: dict[str, object] = {
@@ -205,7 +282,21 @@ def run(args: argparse.Namespace) -> int:
             "sze_relative": camera is None,
             "missing": evaluator.missing,
             "overlapping": list(first.overlapping),
-            "partition": reference.partition.counts(),
+            "partition": {
+                **(reference.partition.counts() if reference is not None else {}),
+                **(
+                    {GT_FREE_PREFIX + c: n for c, n in pair.partition.counts().items()}
+                    if pair is not None
+                    else {}
+                ),
+            },
+            "gt_free": None
+            if pair is None
+            else {
+                "criteria": [c for c in first.criteria if is_gt_free(c)],
+                "measures": list(GT_FREE_SCORED),
+                "in_objectives": bool(args.gt_free_objectives) or reference is None,
+            },
         }
         if model is not None:
             document["objectives"] = model[0]
@@ -216,10 +307,18 @@ def run(args: argparse.Namespace) -> int:
         document["provenance"] = _provenance(args, evaluator, camera, inputs)
         print_json(document)
         return 0
-    print(
-        f"ground truth: {gt_name}  ({reference.shape[1]}×{reference.shape[0]}, "
-        f"{int(np.count_nonzero(reference.partition.cells >= 0))} valid points)"
-    )
+    if reference is not None:
+        print(
+            f"ground truth: {gt_name}  ({reference.shape[1]}×{reference.shape[0]}, "
+            f"{int(np.count_nonzero(reference.partition.cells >= 0))} valid points)"
+        )
+    else:
+        print("ground truth: none — ground-truth-free measures only")
+    if pair_files is not None and pair is not None:
+        print(
+            f"images: {pair_files[0]}, {pair_files[1]}  ({pair.shape[1]}×{pair.shape[0]}); "
+            "gtfree: criteria are scored without ground truth"
+        )
     print(
         "camera: "
         + (
@@ -229,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
         )
     )
     print(f"missing estimates: {evaluator.missing}\n")
-    print(scores_text(results, measures, first.overlapping, first.relative))
+    print(scores_text(results, first.measures, first.overlapping, first.relative))
     if model is not None:
         print("\n" + models_text(model[1], model[0]))
     elif no_model:

@@ -78,11 +78,11 @@ def run_command(args: argparse.Namespace) -> int:
     if args.queue_size < 1:
         raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
     config = streams.core_config(args, "live streams")
-    missing = [m for m in args.objective_measures if m not in (config.measures or ())]
+    missing = [m for m in args.objective_measures if m not in config.scored_measures]
     if missing:
         raise ConfigurationError(
-            f"objective measure(s) {', '.join(missing)} are not among --measures "
-            f"({', '.join(config.measures or ())})"
+            f"objective measure(s) {', '.join(missing)} are not among the measures scored "
+            f"({', '.join(config.scored_measures)})"
         )
 
     from dispeval_ros.dds.evaluator import warm_up

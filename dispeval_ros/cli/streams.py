@@ -10,6 +10,7 @@ from dispeval_ros.cli import common
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES
 
 if TYPE_CHECKING:
     from dispeval_ros.live.core import CoreConfig
@@ -20,7 +21,7 @@ def add_stream_options(
 ) -> argparse._ArgumentGroup:
     """Topics, sync, evaluation and model options; returns the "run" group for the rest."""
     topics = parser.add_argument_group("topics")
-    gt = topics.add_mutually_exclusive_group(required=True)
+    gt = topics.add_mutually_exclusive_group()
     gt.add_argument("--gt", metavar="TOPIC", help="ground-truth sensor_msgs/Image topic")
     gt.add_argument(
         "--gt-cloud",
@@ -67,6 +68,21 @@ def add_stream_options(
         f"(default {CloudFilter()})",
     )
     topics.add_argument(
+        "--left-image",
+        metavar="TOPIC",
+        help="left rectified sensor_msgs/Image (mono8, rgb8, bgr8): with --right-image, the "
+        "ground-truth-free measures vpe and lrc (then --gt may be left out)",
+    )
+    topics.add_argument("--right-image", metavar="TOPIC", help="right rectified sensor_msgs/Image")
+    topics.add_argument(
+        "--right-view",
+        action="append",
+        default=[],
+        metavar="NAME=TOPIC",
+        help="a method's right-view DisparityImage topic, for its left-right inconsistency (lrc)",
+    )
+    common.add_gt_free_criteria_option(topics)
+    topics.add_argument(
         "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
     )
     topics.add_argument(
@@ -78,19 +94,7 @@ def add_stream_options(
     )
     common.add_evaluation_options(parser)
     run = parser.add_argument_group("run")
-    run.add_argument(
-        "--objectives",
-        choices=("sequence", "frame"),
-        default="sequence",
-        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
-    )
-    run.add_argument(
-        "--objective-measures",
-        nargs="+",
-        default=["sze", "bmpre"],
-        metavar="M",
-        help="measures that form the objectives (default: sze bmpre)",
-    )
+    common.add_objective_options(run)
     run.add_argument(
         "--out",
         type=Path,
@@ -100,13 +104,13 @@ def add_stream_options(
     return run
 
 
-def _methods(specs: list[str]) -> dict[str, str]:
+def _methods(specs: list[str], option: str = "--method") -> dict[str, str]:
     methods: dict[str, str] = {}
     for spec in specs:
         name, sep, topic = spec.partition("=")
         if not sep or not name or not topic:
             raise ConfigurationError(
-                f"--method '{spec}' is not NAME=TOPIC (e.g. sgbm=/stereo/sgbm/disparity)"
+                f"{option} '{spec}' is not NAME=TOPIC (e.g. sgbm=/stereo/sgbm/disparity)"
             )
         if name in methods:
             raise ConfigurationError(f"method name '{name}' is given twice")
@@ -125,6 +129,17 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     cloud = args.gt_cloud is not None
     if not cloud and (args.extrinsic is not None or args.cloud_filter != str(CloudFilter())):
         raise ConfigurationError("--extrinsic and --cloud-filter go with --gt-cloud")
+    if (args.left_image is None) != (args.right_image is None):
+        raise ConfigurationError("give both --left-image and --right-image, or neither")
+    has_gt = cloud or args.gt is not None
+    if not has_gt and args.left_image is None:
+        raise ConfigurationError(
+            "give the ground truth (--gt TOPIC or --gt-cloud TOPIC), or the rectified images "
+            "(--left-image TOPIC --right-image TOPIC) for the ground-truth-free measures"
+        )
+    if not has_gt and args.objective_measures == list(DEFAULT_OBJECTIVE_MEASURES):
+        args.objective_measures = ["vpe"]  # without GT the models compare vpe
+    gt_free_criteria = common.gt_free_criteria(args)
     if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
         args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
     evaluator = common.evaluator_from_args(args)
@@ -136,8 +151,12 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         extrinsic = tuple(float(v) for v in read_extrinsic(args.extrinsic).reshape(-1))
     return CoreConfig(
         methods=_methods(args.method),
-        gt_topic=args.gt_cloud if cloud else args.gt,
-        gt_kind="pointcloud" if cloud else args.gt_kind,
+        gt_topic=args.gt_cloud if cloud else (args.gt if has_gt else args.left_image),
+        gt_kind="pointcloud" if cloud else (args.gt_kind if has_gt else "none"),
+        left_image_topic=args.left_image,
+        right_image_topic=args.right_image,
+        right_views=_methods(args.right_view, "--right-view"),
+        gt_free_criteria=tuple(gt_free_criteria),
         extrinsic=extrinsic,
         cloud_filter=str(CloudFilter.parse(args.cloud_filter)),
         gt_scale=common.positive_option(args.gt_scale, "--gt-scale"),

@@ -8,9 +8,10 @@ from typing import Any
 
 from dispeval_ros.cli.output import table
 from dispeval_ros.core import ModelResult
-from dispeval_ros.core.measures import measure_unit
+from dispeval_ros.core.measures import GT_FREE_PREFIX, applies, measure_unit
 
 ScoreTable = Mapping[str, Mapping[str, float]]
+GT_FREE_LABEL = "  (ground-truth-free: from the left and right images, no GT)"
 
 
 def measure_header(name: str, relative: bool = False) -> str:
@@ -49,19 +50,26 @@ def scores_text(
     overlapping: Sequence[str] = (),
     relative: bool = False,
 ) -> str:
-    """One table per criterion (split to the terminal's width): a row per method."""
+    """One table per criterion (split to the terminal's width): a row per method.
+
+    A criterion shows the measures defined on it: ground-truth-free criteria (``gtfree:``)
+    the GT-free measures and density, the others the GT measures.
+    """
     blocks = []
     methods = list(scores)
     criteria = list(scores[methods[0]]) if methods else []
-    header = ["method", "n", *(measure_header(m, relative) for m in measures)]
     for criterion in criteria:
+        shown = [m for m in measures if applies(m, criterion)]
+        header = ["method", "n", *(measure_header(m, relative) for m in shown)]
         rows = []
         for method in methods:
             values = scores[method][criterion]
-            rows.append([method, int(values["n"]), *(values[m] for m in measures)])
+            rows.append([method, int(values["n"]), *(values[m] for m in shown)])
         title = f"criterion: {criterion}"
         if criterion in overlapping:
             title += "  (legacy Middlebury criterion: overlaps the others)"
+        if criterion.startswith(GT_FREE_PREFIX):
+            title += GT_FREE_LABEL
         blocks.append(title + "\n" + fitted_tables(header, rows, keep=2))
     return "\n\n".join(blocks)
 
@@ -93,7 +101,7 @@ def models_text(result: ModelResult, objectives: Sequence[str]) -> str:
     )
 
 
-SEQUENCE_MEASURES = ("density", "bmp", "mae", "d1", "sze", "sze_mean", "bmpre")
+SEQUENCE_MEASURES = ("density", "bmp", "mae", "d1", "sze", "sze_mean", "bmpre", "vpe", "lrc")
 """Shown per sequence: SZE is a sum (its size grows with the points); sze_mean is per point."""
 
 
@@ -115,14 +123,18 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         )
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
-            shown = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
-            header = ["method", "n", *(measure_header(m, first.relative) for m in shown)]
+            measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
             for criterion in first.criteria:
+                shown = [m for m in measures if applies(m, criterion)]
+                header = ["method", "n", *(measure_header(m, first.relative) for m in shown)]
                 rows = [
                     [m, int(s[criterion]["n"]), *(s[criterion][x] for x in shown)]
                     for m, s in sequence.scores.items()
                 ]
-                parts.append(f"\ncriterion: {criterion} (summed over the common frames)")
+                parts.append(
+                    f"\ncriterion: {criterion} (summed over the common frames)"
+                    + (GT_FREE_LABEL if criterion.startswith(GT_FREE_PREFIX) else "")
+                )
                 parts.append(fitted_tables(header, rows, keep=2))
         if sequence.models is not None:
             parts.append("\n" + models_text(sequence.models, sequence.objectives))

@@ -7,6 +7,7 @@ end (files, bags, ROS topics, DDS) shares one tested implementation.
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.criteria import CRITERION_SETS, CriterionSet, Partition, build_partition
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, POLICIES, Evaluator, Reference
+from dispeval_ros.core.gtfree import GroundTruthFree, ImagePair
 from dispeval_ros.core.measures import DEFAULT_MEASURES, HIGHER_IS_BETTER, Scores, parse_measures
 from dispeval_ros.core.models import (
     ModelResult,
@@ -46,6 +47,8 @@ __all__ = [
     "Evaluator",
     "FrameData",
     "FrameResult",
+    "GroundTruthFree",
+    "ImagePair",
     "ModelResult",
     "Partition",
     "Protocol",

@@ -431,3 +431,38 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
         overlapping=tuple(overlapping),
         sources=sources,
     )
+
+
+TEXTURE = ("textured", "textureless")
+#: Middlebury 2001 taxonomy (Scharstein & Szeliski, MSR-TR-2001-81, §5.1): a pixel is
+#: textureless where the squared horizontal intensity gradient, averaged over a square window
+#: of this width, is below :data:`TEXTURE_THRESHOLD` (grey levels², 8-bit intensities).
+TEXTURE_WINDOW = 3
+TEXTURE_THRESHOLD = 4.0
+
+
+def texture_set(
+    image: np.ndarray,
+    window: int = TEXTURE_WINDOW,
+    threshold: float = TEXTURE_THRESHOLD,
+) -> CriterionSet:
+    """``textured`` / ``textureless`` from the left image alone (never from a method's output).
+
+    The horizontal gradient is the forward difference ``I(x+1, y) − I(x, y)`` (0 in the last
+    column); its square is box-averaged over ``window × window`` pixels (borders reflected).
+    """
+    if image.ndim != 2:
+        raise ConfigurationError(f"the texture criteria need a grey image, got shape {image.shape}")
+    if window < 1:
+        raise ConfigurationError(f"the texture window must be at least 1 pixel, got {window}")
+    grey = image.astype(np.float32)
+    squared = np.zeros(grey.shape, np.float32)
+    squared[:, :-1] = np.square(grey[:, 1:] - grey[:, :-1])
+    mean = cv2.boxFilter(squared, -1, (window, window), borderType=cv2.BORDER_REFLECT_101)
+    labels = (mean < threshold).astype(np.int32)
+    return _partitioning(
+        "texture",
+        labels,
+        TEXTURE,
+        f"mean squared horizontal gradient over {window}×{window} < {threshold:g} grey levels²",
+    )

@@ -42,7 +42,13 @@ FIELD_SUM_EZ = FIELD_BAD + MAX_THRESHOLDS
 FIELD_SUM_EZ2 = FIELD_SUM_EZ + 1
 FIELD_SUM_RELZ = FIELD_SUM_EZ + 2
 FIELD_SUM_IZ2 = FIELD_SUM_EZ + 3
-FIELD_COUNT = FIELD_SUM_EZ + 4
+# Ground-truth-free sums (core/gtfree.py) follow: pixels in the view-prediction error and their
+# Σ|I_L − I_R(x − d)|, pixels left-right checked and the inconsistent ones among them.
+FIELD_N_VPE = FIELD_SUM_EZ + 4
+FIELD_SUM_VPE = FIELD_N_VPE + 1
+FIELD_N_LRC = FIELD_N_VPE + 2
+FIELD_LRC = FIELD_N_VPE + 3
+FIELD_COUNT = FIELD_N_VPE + 4
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")

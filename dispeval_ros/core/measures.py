@@ -75,6 +75,8 @@ _UNITS = {
     "rmse_z": "m",
     "absrel_z": "ratio",
     "irmse": "1/km",
+    "vpe": "grey levels",
+    "lrc": "%",
 }
 
 
@@ -107,7 +109,8 @@ def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
                 chosen.append(name)
             continue
         raise ConfigurationError(
-            f"unknown measure '{name}'; known: {', '.join((*DEFAULT_MEASURES, *DEPTH_MEASURES))} "
+            f"unknown measure '{name}'; known: "
+            f"{', '.join((*DEFAULT_MEASURES, *DEPTH_MEASURES, *GT_FREE_MEASURES))} "
             "(bad_X for any threshold X, aNN for any quantile NN)"
         )
     if not chosen:
@@ -146,9 +149,31 @@ SUM_FIELDS = (
     "sum_ez2",
     "sum_relz",
     "sum_iz2",
+    "n_vpe",
+    "sum_vpe",
+    "n_lrc",
+    "lrc_count",
 )
 """Names of the accumulator columns (``bad_count_0`` is at δ, the others at the bad-x thresholds;
-then the depth-domain sums)."""
+then the depth-domain sums, then the ground-truth-free sums)."""
+
+GT_FREE_MEASURES = ("vpe", "lrc")
+"""Measures that need no ground truth (view-prediction error, left-right inconsistency): scored
+on the ``gtfree:`` criteria only, never objectives beside GT measures unless asked."""
+GT_FREE_PREFIX = "gtfree:"
+"""Criteria scored without ground truth carry this prefix wherever they appear."""
+
+
+def applies(measure: str, criterion: str) -> bool:
+    """Whether a measure is defined on a criterion.
+
+    GT-free measures on ``gtfree:`` criteria only, GT measures on GT criteria only
+    (``density`` and ``n`` on both).
+    """
+    if measure in ("n", "density"):
+        return True
+    return (measure in GT_FREE_MEASURES) == criterion.startswith(GT_FREE_PREFIX)
+
 
 DEPTH_MEASURES = ("mae_z", "rmse_z", "absrel_z", "irmse")
 """Depth-domain measures (metres, or the camera's unit; ``irmse`` in 1/km as KITTI's depth
@@ -186,6 +211,8 @@ _FROM_SUMS: dict[str, Callable[[np.ndarray], float]] = {
     "absrel_z": _mean(k.FIELD_SUM_RELZ),
     # 1/Z in 1/km: sqrt(mean((1/Z_E − 1/Z_D)²)) · 1000 for Z in metres.
     "irmse": lambda sums: 1000.0 * math.sqrt(_ratio(sums[k.FIELD_SUM_IZ2], sums[k.FIELD_EVAL])),
+    "vpe": lambda sums: _ratio(sums[k.FIELD_SUM_VPE], sums[k.FIELD_N_VPE]),
+    "lrc": lambda sums: _ratio(sums[k.FIELD_LRC], sums[k.FIELD_N_LRC], 100.0),
 }
 
 
@@ -228,7 +255,9 @@ class Scores(Mapping[str, Mapping[str, float]]):
             row = self.sums[index]
             values: dict[str, float] = {"n": float(row[k.FIELD_N])}
             for name in self.measures:
-                if quantile_level(name) is not None:
+                if not applies(name, criterion):
+                    values[name] = math.nan
+                elif quantile_level(name) is not None:
                     values[name] = self.quantiles.get(criterion, {}).get(name, math.nan)
                 else:
                     values[name] = measure_from_sums(name, row, self.thresholds)

@@ -6,6 +6,7 @@ from dispeval_ros.io.files import (
     read_disparity,
     read_mask,
     read_pfm,
+    read_stereo_pair,
     write_disparity_png16,
     write_pfm,
 )
@@ -57,6 +58,7 @@ __all__ = [
     "read_mask",
     "read_objectives_csv",
     "read_pfm",
+    "read_stereo_pair",
     "read_velodyne_bin",
     "require_topic",
     "stamp_ns",

@@ -452,3 +452,43 @@ def write_disparity_png16(path: PathLike, disparity: np.ndarray) -> None:
         raise InputError(f"{file}: cannot write PNG ({_one_line(str(exc))})") from None
     if not ok:
         raise InputError(f"{file}: cannot write PNG (OpenCV refused the path)")
+
+
+def read_stereo_pair(left: PathLike, right: PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """The left and right rectified images as 8-bit grey (colour through BT.601 weights).
+
+    Both must be 8 bit and both grey or both colour: a colour image beside a grey one, or a
+    16-bit image, is one line naming the file.
+    """
+    images = []
+    for side, name in (("left", left), ("right", right)):
+        file = Path(name)
+        if file.suffix.lower() not in _IMAGE_EXTENSIONS:
+            raise InputError(
+                f"{file}: unknown image file type {file.suffix or '(no extension)'!r} for the "
+                f"{side} image, expected one of {', '.join(_IMAGE_EXTENSIONS)}"
+            )
+        buffer = np.frombuffer(_read_bytes(file, f"{side} image"), dtype=np.uint8)
+        with quiet_opencv():
+            image = cv2.imdecode(buffer, cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise InputError(f"{file}: cannot decode the {side} image (corrupt or wrong format)")
+        if image.dtype != np.uint8:
+            raise InputError(f"{file}: the {side} image must be 8 bit, found {image.dtype}")
+        images.append((file, image))
+    (left_file, left_image), (right_file, right_image) = images
+    colours = [image.ndim == 3 for _, image in images]
+    if colours[0] != colours[1]:
+        shown = ["colour" if colour else "grey" for colour in colours]
+        raise InputError(
+            f"{left_file} is {shown[0]} but {right_file} is {shown[1]}: give both images in "
+            "one kind (both grey or both colour)"
+        )
+    return _grey(left_image), _grey(right_image)
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 2:
+        return np.ascontiguousarray(image)
+    code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+    return cv2.cvtColor(image, code)

@@ -18,6 +18,13 @@ import numpy as np
 
 from dispeval_ros.core import Camera, Evaluator, Partition, Scores
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
+from dispeval_ros.core.gtfree import (
+    DEFAULT_GT_FREE_CRITERIA,
+    GT_FREE_SCORED,
+    GroundTruthFree,
+    ImagePair,
+    joined,
+)
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import (
     CloudFilter,
@@ -37,6 +44,7 @@ from dispeval_ros.io.messages import (
     rectified_camera_from_info,
     stamp_ns,
     static_transforms_from_msg,
+    stereo_grey,
 )
 from dispeval_ros.live.join import FrameSet, JoinCounts, StampJoiner
 
@@ -46,7 +54,14 @@ CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
-GT_KINDS = ("disparity", "depth", "pointcloud")
+GT_KINDS = ("disparity", "depth", "pointcloud", "none")
+"""``none``: no ground truth; the left image is the frame clock and only the ground-truth-free
+measures are scored."""
+LEFT_IMAGE_KEY = "<left image>"
+RIGHT_IMAGE_KEY = "<right image>"
+RIGHT_VIEW_KEY = "<right view> "
+"""Join keys of the images and of each method's right-view disparity (``RIGHT_VIEW_KEY + name``):
+joined with the ground truth like a method, never counted as one."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +86,13 @@ class CoreConfig:
     the chain from /tf_static."""
     cloud_filter: str = str(CloudFilter())
     """Point-cloud GT: the parallax filter, ``"W,G"`` or ``"0"`` (see :class:`CloudFilter`)."""
+    left_image_topic: str | None = None
+    """Left rectified sensor_msgs/Image (mono8, 8UC1, rgb8 or bgr8): with the right one, the
+    ground-truth-free measures (vpe, lrc) on ``gtfree:`` criteria."""
+    right_image_topic: str | None = None
+    right_views: Mapping[str, str] = field(default_factory=dict)
+    """Method → its right-view DisparityImage topic (for lrc); optional per method."""
+    gt_free_criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA
 
     def __post_init__(self) -> None:
         if not self.methods:
@@ -82,6 +104,15 @@ class CoreConfig:
         topics = list(self.methods.values())
         if len(set(topics)) != len(topics):
             raise ConfigurationError("two methods read the same topic")
+        images = (self.left_image_topic, self.right_image_topic)
+        others = [
+            t for t in images if t and not (self.gt_kind == "none" and t == self.gt_topic)
+        ] + list(self.right_views.values())
+        if len(set(others)) != len(others) or set(others) & {self.gt_topic, *topics}:
+            raise ConfigurationError(
+                "the image and right-view topics must differ from each other, from the "
+                "ground-truth topic and from the methods' topics"
+            )
         if self.gt_topic in topics:
             raise ConfigurationError(
                 f"the ground-truth topic {self.gt_topic} is also a method's topic"
@@ -90,6 +121,36 @@ class CoreConfig:
             raise ConfigurationError(
                 "give both the left and the right CameraInfo topics, or neither"
             )
+        if (self.left_image_topic is None) != (self.right_image_topic is None):
+            raise ConfigurationError("give both the left and the right image topics, or neither")
+        if self.gt_kind == "none" and self.left_image_topic != self.gt_topic:
+            raise ConfigurationError(
+                "without ground truth the left image topic is the frame clock: give the left and "
+                "right image topics"
+            )
+        unknown = sorted(set(self.right_views) - set(self.methods))
+        if unknown:
+            raise ConfigurationError(
+                f"right-view disparity topics of unknown methods: {', '.join(unknown)}"
+            )
+        if self.right_views and not self.gt_free:
+            raise ConfigurationError(
+                "right-view disparities (for lrc) need the left and right image topics"
+            )
+        reserved = [
+            m
+            for m in self.methods
+            if m in (LEFT_IMAGE_KEY, RIGHT_IMAGE_KEY) or m.startswith(RIGHT_VIEW_KEY)
+        ]
+        if reserved:
+            raise ConfigurationError(f"method name '{reserved[0]}' is reserved")
+        if self.gt_free:
+            GroundTruthFree(self.gt_free_criteria, self.missing)  # checks the criteria
+            if "roi" in self.gt_free_criteria:
+                raise ConfigurationError(
+                    "the ground-truth-free criterion set 'roi' needs a mask: not available on "
+                    "streams; choose all, texture"
+                )
         if self.gt_kind == "pointcloud":
             if self.left_info_topic is None:
                 raise ConfigurationError(
@@ -104,6 +165,33 @@ class CoreConfig:
     def pointcloud(self) -> bool:
         """Whether the ground truth is a LiDAR point cloud."""
         return self.gt_kind == "pointcloud"
+
+    @property
+    def gt_free(self) -> bool:
+        """Whether the ground-truth-free measures are scored (both image topics given)."""
+        return self.left_image_topic is not None and self.right_image_topic is not None
+
+    @property
+    def has_gt(self) -> bool:
+        """Whether a ground truth is scored (kind other than ``none``)."""
+        return self.gt_kind != "none"
+
+    @property
+    def scored_measures(self) -> tuple[str, ...]:
+        """Every measure a frame's scores carry: the GT ones, then the GT-free ones."""
+        gt = tuple(self.evaluator().measures) if self.has_gt else ()
+        free = GT_FREE_SCORED if self.gt_free else ()
+        return tuple(dict.fromkeys((*gt, *free)))
+
+    def auxiliary(self) -> dict[str, str]:
+        """Join key → topic of the streams joined with each frame beside the methods."""
+        keys: dict[str, str] = {}
+        if self.gt_free and self.has_gt and self.left_image_topic is not None:
+            keys[LEFT_IMAGE_KEY] = self.left_image_topic
+        if self.gt_free and self.right_image_topic is not None:
+            keys[RIGHT_IMAGE_KEY] = self.right_image_topic
+        keys.update({RIGHT_VIEW_KEY + name: topic for name, topic in self.right_views.items()})
+        return keys
 
     @property
     def tf_topic(self) -> str | None:
@@ -125,6 +213,10 @@ class CoreConfig:
             expected[self.tf_topic] = TF_TYPE
         expected[self.gt_topic] = POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE
         expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
+        if self.left_image_topic and self.right_image_topic:
+            expected[self.left_image_topic] = IMAGE_TYPE
+            expected[self.right_image_topic] = IMAGE_TYPE
+        expected.update(dict.fromkeys(self.right_views.values(), DISPARITY_TYPE))
         return expected
 
     def as_record(self) -> dict[str, object]:
@@ -147,10 +239,27 @@ class CoreConfig:
                 if self.pointcloud
                 else {}
             ),
+            **(
+                {
+                    "images": [self.left_image_topic, self.right_image_topic],
+                    "right_views": dict(self.right_views),
+                    "gt_free_criteria": list(self.gt_free_criteria),
+                }
+                if self.gt_free
+                else {}
+            ),
         }
+
+    def ground_truth_free(self) -> GroundTruthFree | None:
+        """The ground-truth-free scorer (None without image topics)."""
+        if not self.gt_free:
+            return None
+        return GroundTruthFree(self.gt_free_criteria, self.missing)
 
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones).
+
+        Unused without ground truth (``gt_kind`` ``none``).
 
         LiDAR GT gets metric depth ranges (0-10, 10-30, 30+ m), the sparse boundary rule and
         the depth-domain measures by default.
@@ -205,10 +314,13 @@ class EvaluationCore:
         self.config = config
         self.error_images = error_images
         self.evaluator = config.evaluator()
+        self.gt_free = config.ground_truth_free()
+        auxiliary = config.auxiliary()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
-            list(config.methods), config.tolerance_ns, config.lateness_ns, keep_events
+            [*config.methods, *auxiliary], config.tolerance_ns, config.lateness_ns, keep_events
         )
         self._method_of_topic = {topic: name for name, topic in config.methods.items()}
+        self._method_of_topic.update({topic: key for key, topic in auxiliary.items()})
         self._infos: dict[str, Any] = {}
         self._camera: Camera | None = None
         self.transforms = TransformTree()
@@ -258,10 +370,23 @@ class EvaluationCore:
     def score(self, frame_set: FrameSet[Any, Any]) -> FrameResult:
         """Score every estimate of one joined frame; per-frame problems are recorded, not raised."""
         result = FrameResult(frame_set.stamp, {}, {})
+        estimates = {
+            method: entry
+            for method, entry in frame_set.estimates.items()
+            if method in self.config.methods
+        }
+        if not estimates:  # only images or right views arrived for this frame
+            return result
+        pair = self._image_pair(frame_set, result)
+        if not self.config.has_gt:
+            if pair is None:
+                for method in estimates:
+                    self._count_failed(method)
+                return result
+            return self._score_gt_free_only(frame_set, estimates, pair, result)
         try:
             first = disparity_from_msg(
-                next(iter(frame_set.estimates.values()))[1],
-                self._topic(next(iter(frame_set.estimates))),
+                next(iter(estimates.values()))[1], self._topic(next(iter(estimates)))
             )
             camera = self.camera(first.camera)
             if camera is None:  # scoring it would mix relative SZE into metric totals
@@ -275,16 +400,19 @@ class EvaluationCore:
                 )
             reference = self.evaluator.reference(gt, camera)
         except DispevalError as error:
-            for method in frame_set.estimates:
+            for method in estimates:
                 self._count_failed(method)
             result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
-        for method, (stamp, msg) in frame_set.estimates.items():
+        for method, (stamp, msg) in estimates.items():
             topic = self._topic(method)
             try:
                 frame = disparity_from_msg(msg, topic)
-                result.scores[method] = self.evaluator.score(
+                gt_scores = self.evaluator.score(
                     reference, frame.disparity, est_range=frame.est_range
+                )
+                result.scores[method] = joined(
+                    gt_scores, self._gt_free_scores(method, frame, frame_set, pair, result)
                 )
                 result.estimate_stamps[method] = stamp
                 if self.error_images:
@@ -306,6 +434,131 @@ class EvaluationCore:
             f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected finite "
             "and > 0); give the CameraInfo topics to take the camera from them"
         )
+
+
+    # -- ground-truth-free measures ---------------------------------------------------------
+
+    def _image_pair(self, frame_set: FrameSet[Any, Any], result: FrameResult) -> ImagePair | None:
+        """The frame's left and right images checked and partitioned (None: a problem recorded).
+
+        Without image topics: None and no problem.
+        """
+        if self.gt_free is None:
+            return None
+        left_topic, right_topic = self.config.left_image_topic, self.config.right_image_topic
+        left_msg = frame_set.gt if not self.config.has_gt else _payload(frame_set, LEFT_IMAGE_KEY)
+        right_msg = _payload(frame_set, RIGHT_IMAGE_KEY)
+        missing = [
+            topic
+            for topic, msg in ((left_topic, left_msg), (right_topic, right_msg))
+            if msg is None
+        ]
+        if missing:
+            result.problems.append(
+                (
+                    None,
+                    f"images at {frame_set.stamp}: no image on {' and '.join(map(str, missing))} "
+                    f"within {self.config.tolerance_ns / 1e6:g} ms of this frame; "
+                    "ground-truth-free measures not scored",
+                )
+            )
+            return None
+        try:
+            left, right = stereo_grey(
+                image_from_msg(left_msg, str(left_topic)),
+                image_from_msg(right_msg, str(right_topic)),
+                str(left_topic),
+                str(right_topic),
+            )
+            return self.gt_free.pair(left, right)
+        except DispevalError as error:
+            result.problems.append(
+                (
+                    None,
+                    f"images at {frame_set.stamp}: {error}; ground-truth-free measures not scored",
+                )
+            )
+            return None
+
+    def _gt_free_scores(
+        self,
+        method: str,
+        frame: DisparityFrame,
+        frame_set: FrameSet[Any, Any],
+        pair: ImagePair | None,
+        result: FrameResult,
+    ) -> Scores | None:
+        """Beside GT scores: one method's GT-free scores, or empty rows and a problem.
+
+        Empty rows keep every frame's criteria the same, so sequences still add up exactly.
+        """
+        if self.gt_free is None:
+            return None
+        if pair is None:
+            return self.gt_free.empty()
+        try:
+            return self._score_images(method, frame, frame_set, pair, result)
+        except DispevalError as error:
+            result.problems.append(
+                (
+                    method,
+                    f"{self._topic(method)} at {frame_set.stamp}: {error}; "
+                    "ground-truth-free measures not scored",
+                )
+            )
+            return self.gt_free.empty()
+
+    def _score_images(
+        self,
+        method: str,
+        frame: DisparityFrame,
+        frame_set: FrameSet[Any, Any],
+        pair: ImagePair,
+        result: FrameResult,
+    ) -> Scores:
+        """Vpe (and lrc with the method's right view) of one estimate on the frame's images."""
+        if self.gt_free is None:
+            raise ConfigurationError(
+                "no image topics configured for the ground-truth-free measures"
+            )
+        right_view = None
+        entry = frame_set.estimates.get(RIGHT_VIEW_KEY + method)
+        if entry is not None:
+            right_view = disparity_from_msg(entry[1], self.config.right_views[method])
+        elif method in self.config.right_views:
+            result.problems.append(
+                (
+                    method,
+                    f"{self.config.right_views[method]} at {frame_set.stamp}: no right-view "
+                    "disparity for this frame; lrc not scored",
+                )
+            )
+        return self.gt_free.score(
+            pair,
+            frame.disparity,
+            est_range=frame.est_range,
+            est_right=None if right_view is None else right_view.disparity,
+            right_range=None if right_view is None else right_view.est_range,
+        )
+
+    def _score_gt_free_only(
+        self,
+        frame_set: FrameSet[Any, Any],
+        estimates: dict[str, tuple[int, Any]],
+        pair: ImagePair,
+        result: FrameResult,
+    ) -> FrameResult:
+        """No ground truth: each method's GT-free scores alone (a bad estimate: failed)."""
+        for method, (stamp, msg) in estimates.items():
+            topic = self._topic(method)
+            try:
+                frame = disparity_from_msg(msg, topic)
+                result.scores[method] = self._score_images(method, frame, frame_set, pair, result)
+                result.estimate_stamps[method] = stamp
+            except DispevalError as error:
+                self._count_failed(method)
+                result.problems.append((method, f"{topic} at {stamp}: {error}"))
+        return result
 
     def extrinsic(self, camera_frame: str, cloud_frame: str) -> np.ndarray:
         """The cloud → camera transform: explicit, the lookup hook, or /tf_static's chain."""
@@ -366,7 +619,14 @@ class EvaluationCore:
         return {
             method: _with_failed(join, self.failed[method])
             for method, join in self.joiner.counts.items()
+            if method in self.failed
         }
+
+
+def _payload(frame_set: FrameSet[Any, Any], key: str) -> Any:
+    """The message joined under ``key`` (an image or a right view), or None."""
+    entry = frame_set.estimates.get(key)
+    return None if entry is None else entry[1]
 
 
 def _with_failed(join: JoinCounts, failed: int) -> MethodCounts:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import Scores
-from dispeval_ros.core.measures import SUM_FIELDS
+from dispeval_ros.core.measures import SUM_FIELDS, applies
 from dispeval_ros.errors import ConfigurationError, InputError
 
 OK, WARN, ERROR = 0, 1, 2
@@ -100,6 +100,8 @@ def scores_status(
     for criterion in scores.criteria:
         table = scores[criterion]
         for measure, value in table.items():
+            if not applies(measure, criterion):
+                continue  # GT measures on gtfree: criteria and vice versa: always NaN
             key = f"{criterion}/{measure}"
             values.append((key, format_number(value)))
             if alarms is not None:
@@ -133,13 +135,15 @@ def scores_from_status(
         raise InputError(
             f"the diagnostic sums have {sums.shape[1]} fields, expected {len(SUM_FIELDS)}"
         )
-    if measures is None:
-        prefix = criteria[0] + "/"
-        measures = [
-            key[len(prefix) :]
-            for key, _ in values
-            if key.startswith(prefix) and key[len(prefix) :] not in ("n", SUMS_KEY)
-        ]
+    if measures is None:  # every measure some criterion carries (GT and GT-free ones)
+        known = set(criteria)
+        measures = list(
+            dict.fromkeys(
+                key.rpartition("/")[2]
+                for key, _ in values
+                if key.rpartition("/")[0] in known and key.rpartition("/")[2] not in ("n", SUMS_KEY)
+            )
+        )
     return Scores(
         criteria=tuple(criteria),
         measures=tuple(measures),
@@ -165,7 +169,9 @@ def vector_labels(criteria: Sequence[str], measures: Sequence[str]) -> list[str]
     for criterion in criteria:
         labels.append(f"{criterion}/n")
         labels.append(f"{criterion}/density")
-        labels.extend(f"{criterion}/{m}" for m in measures if m != "density")
+        labels.extend(
+            f"{criterion}/{m}" for m in measures if m != "density" and applies(m, criterion)
+        )
     return labels
 
 
@@ -181,7 +187,11 @@ def score_vector(scores: Scores, labels: Sequence[str]) -> list[float]:
 def problem_status(method: str | None, topic: str, message: str) -> StatusRecord:
     """The ERROR status of a frame that could not be scored (no scores, so summaries skip it)."""
     return StatusRecord(
-        method if method is not None else GROUND_TRUTH, topic, ERROR, message, ((PROBLEM_KEY, message),)
+        method if method is not None else GROUND_TRUTH,
+        topic,
+        ERROR,
+        message,
+        ((PROBLEM_KEY, message),),
     )
 
 

@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
+from dispeval_ros.core.measures import applies
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.store import MatchCounts
 
@@ -75,13 +76,18 @@ def _criteria(scores: Scores) -> list[str]:
 def _block(
     scores: dict[str, Scores], methods: Sequence[str], measures: Sequence[str], label: str
 ) -> tuple[list[str], np.ndarray]:
-    """Objective names and the methods × objectives block of one set of scores."""
+    """Objective names and the methods × objectives block of one set of scores.
+
+    A measure is an objective only on the criteria it is defined on: GT measures on GT
+    criteria, GT-free ones (vpe, lrc) on ``gtfree:`` criteria, so the two never mix unless
+    both kinds of measure are chosen.
+    """
     criteria = _criteria(scores[methods[0]])
-    names = [f"{c}/{m}{label}" for c in criteria for m in measures]
+    pairs = [(c, m) for c in criteria for m in measures if applies(m, c)]
+    names = [f"{c}/{m}{label}" for c, m in pairs]
     block = np.array(
-        [[scores[method][c][m] for c in criteria for m in measures] for method in methods],
-        dtype=np.float64,
-    )
+        [[scores[method][c][m] for c, m in pairs] for method in methods], dtype=np.float64
+    ).reshape(len(methods), len(pairs))
     return names, block
 
 
@@ -162,7 +168,6 @@ def summarize(
     if len(summaries) > 1 and matrix is not None and len(methods) > 1:
         overall = evaluate_models(methods, matrix)
     return RunSummary(granularity, list(measures), summaries, all_names, overall, matrix)
-
 
 
 def objective_table(

@@ -37,6 +37,7 @@ from dispeval_ros.core import kernels as k
 from dispeval_ros.core.measures import (
     HIGHER_IS_BETTER,
     SUM_FIELDS,
+    applies,
     bad_threshold,
     measure_unit,
     quantile_level,
@@ -82,6 +83,8 @@ _RATIOS = {
     "density": (k.FIELD_VALID, k.FIELD_N, 1.0),
     "mae_z": (k.FIELD_SUM_EZ, k.FIELD_EVAL, 1.0),
     "absrel_z": (k.FIELD_SUM_RELZ, k.FIELD_EVAL, 1.0),
+    "vpe": (k.FIELD_SUM_VPE, k.FIELD_N_VPE, 1.0),
+    "lrc": (k.FIELD_LRC, k.FIELD_N_LRC, 100.0),
 }
 # name: (numerator field, scale inside the root) of the root-mean measures
 _ROOTS = {
@@ -182,14 +185,17 @@ def default_selection(store: ResultsStore, overlapping: Iterable[str] | None = N
     """What the summary compares, as the report opens.
 
     Every sequence, frame and method, the partition criteria (overlapping legacy criteria
-    left out), ``sze`` and ``bmpre`` per sequence.
+    left out), ``sze`` and ``bmpre`` per sequence (``gtfree:`` criteria left out then; without
+    ground truth the first measure, vpe, on them).
     """
     measures = store.measures()
     chosen = [m for m in DEFAULT_OBJECTIVE_MEASURES if m in measures] or measures[:1]
     skip = set(store.overlapping_criteria() if overlapping is None else overlapping)
     return Selection(
         sequences=tuple(store.sequences()),
-        criteria=tuple(c for c in store.criteria() if c not in skip),
+        criteria=tuple(  # ground-truth-free criteria only where their measures are compared
+            c for c in store.criteria() if c not in skip and any(applies(m, c) for m in chosen)
+        ),
         measures=tuple(chosen),
         methods=tuple(store.methods()),
     )

@@ -80,7 +80,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         STRING,
         "",
         "Ground-truth sensor_msgs/msg/Image topic (disparity in px or depth, see gt_kind)",
-        "required; encodings 32FC1, 64FC1, 16UC1, mono16",
+        "required unless gt_kind is none; encodings 32FC1, 64FC1, 16UC1, mono16",
     ),
     Param(
         "gt_kind",
@@ -88,8 +88,44 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "disparity",
         "What the ground truth is: a disparity or depth Image, or a LiDAR's "
         "sensor_msgs/msg/PointCloud2 projected into the left camera (pointcloud: needs both "
-        "CameraInfo topics; see lidar_extrinsic and cloud_filter)",
-        "disparity | depth | pointcloud",
+        "CameraInfo topics; see lidar_extrinsic and cloud_filter); none: no ground truth, only "
+        "the ground-truth-free measures of left_image_topic and right_image_topic",
+        "disparity | depth | pointcloud | none",
+    ),
+    Param(
+        "left_image_topic",
+        STRING,
+        "",
+        "Left rectified sensor_msgs/msg/Image: with right_image_topic, the ground-truth-free "
+        "measures vpe (view-prediction error, grey levels) and lrc on gtfree:* criteria. Empty: "
+        "none",
+        "give both image topics or neither; encodings mono8, 8UC1, rgb8, bgr8 (both grey or "
+        "both colour)",
+    ),
+    Param(
+        "right_image_topic",
+        STRING,
+        "",
+        "Right rectified sensor_msgs/msg/Image (warped into the left view by each estimate)",
+        "give both image topics or neither",
+    ),
+    Param(
+        "right_views",
+        STRING_ARRAY,
+        (),
+        "Right-view stereo_msgs/msg/DisparityImage of some methods, each NAME:TOPIC, for their "
+        "left-right inconsistency lrc (needs the image topics). Read at start only (an empty "
+        "array default cannot be read-only in ROS)",
+        "NAME of a method in methods; topics distinct from every other topic",
+        read_only=False,
+    ),
+    Param(
+        "gt_free_criteria",
+        STRING_ARRAY,
+        ("all", "texture"),
+        "Criterion sets of the ground-truth-free measures: all, texture (textured / textureless "
+        "from the left image, Middlebury 2001 rule)",
+        "all, texture",
     ),
     Param(
         "lidar_extrinsic",
@@ -336,22 +372,22 @@ SUMMARIZER_PARAMETERS: tuple[Param, ...] = (
 # -- values → configurations (no ROS) --------------------------------------------------------
 
 
-def parse_methods(items: Sequence[str]) -> dict[str, str]:
+def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str, str]:
     """``NAME:TOPIC`` strings → {name: topic}; names must be usable in topic names."""
     methods: dict[str, str] = {}
     for item in items:
         name, sep, topic = (part.strip() for part in item.partition(":"))
         if not sep or not name or not topic:
             raise ConfigurationError(
-                f"parameter methods: '{item}' is not NAME:TOPIC (e.g. sgbm:/stereo/sgbm/disparity)"
+                f"parameter {parameter}: '{item}' is not NAME:TOPIC (e.g. sgbm:/stereo/sgbm/disparity)"
             )
         if not _METHOD_NAME.fullmatch(name) or "__" in name:
             raise ConfigurationError(
-                f"parameter methods: method name '{name}' must be letters, digits and _ "
+                f"parameter {parameter}: method name '{name}' must be letters, digits and _ "
                 "(no leading digit, no __): it becomes part of /dispeval/NAME/... topics"
             )
         if name in methods:
-            raise ConfigurationError(f"parameter methods: method '{name}' is given twice")
+            raise ConfigurationError(f"parameter {parameter}: method '{name}' is given twice")
         methods[name] = topic
     if not methods:
         raise ConfigurationError(
@@ -384,13 +420,32 @@ def lidar_extrinsic(text: str) -> tuple[float, ...] | None:
 def core_config(values: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from the evaluator's parameter values."""
     gt_topic = str(values["gt_topic"]).strip()
-    if not gt_topic:
-        raise ConfigurationError("parameter gt_topic is empty: name the ground-truth Image topic")
     kind = str(values["gt_kind"])
     if kind not in GT_KINDS:
         raise ConfigurationError(
             f"parameter gt_kind must be one of {', '.join(GT_KINDS)}, got '{kind}'"
         )
+    left_image = str(values.get("left_image_topic", "")).strip()
+    right_image = str(values.get("right_image_topic", "")).strip()
+    if bool(left_image) != bool(right_image):
+        raise ConfigurationError(
+            "parameters left_image_topic and right_image_topic: give both image topics or neither"
+        )
+    if kind == "none":
+        if not left_image:
+            raise ConfigurationError(
+                "parameter gt_kind is none: give left_image_topic and right_image_topic (the "
+                "ground-truth-free measures need them)"
+            )
+        if gt_topic:
+            raise ConfigurationError(
+                "parameter gt_kind is none but gt_topic is set: leave gt_topic empty"
+            )
+        gt_topic = left_image
+    elif not gt_topic:
+        raise ConfigurationError("parameter gt_topic is empty: name the ground-truth Image topic")
+    right_views = tuple(values.get("right_views", ()))
+    gt_free_criteria = tuple(values.get("gt_free_criteria", ("all", "texture")))
     scale = float(values["gt_scale"])
     if not (math.isfinite(scale) and scale >= 0):
         raise ConfigurationError(f"parameter gt_scale must be >= 0 (0 = default), got {scale}")
@@ -423,6 +478,10 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         mu=float(values["mu"]),
         tolerance_ns=_seconds_to_ns(values["sync_tolerance"], "sync_tolerance"),
         lateness_ns=_seconds_to_ns(values["lateness"], "lateness"),
+        left_image_topic=left_image or None,
+        right_image_topic=right_image or None,
+        right_views=parse_methods(right_views, "right_views") if right_views else {},
+        gt_free_criteria=gt_free_criteria,
     )
 
 

@@ -1,0 +1,485 @@
+"""Measures that need no ground truth: the left and right rectified images judge the estimate.
+
+``vpe`` (view-prediction error, Szeliski's prediction error): the right image warped into the
+left view by the estimate (``x − d``, linear interpolation along the row), mean absolute 8-bit
+grey difference over the pixels whose target lies in the image and is not occluded according
+to the estimate's own z-buffer. ``lrc``: the share of pixels whose right-view estimate (when a
+method publishes one) disagrees by more than 1 px. Both follow the missing-estimate policy as
+the GT measures do (the KITTI-interpolated estimate under ``interpolate``, ``E = 0`` under
+``thesis``, holes left out under ``ignore``): scoring only the valid pixels would reward
+methods that leave the hard pixels out.
+
+Criteria without GT never depend on the method under test: ``all`` (every pixel), ``roi``
+and ``texture`` (from the left image). They are named ``gtfree:<criterion>`` and their sums
+are rows of an ordinary :class:`~dispeval_ros.core.measures.Scores`, so sequences stay exact
+and stores, streams and models take them unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from dispeval_ros.core import criteria as crit
+from dispeval_ros.core import kernels as k
+from dispeval_ros.core.evaluator import POLICIES, as_disparity
+from dispeval_ros.core.measures import (
+    FIELDS,
+    GT_FREE_MEASURES,
+    GT_FREE_PREFIX,
+    Scores,
+    thresholds_for,
+)
+from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchError
+
+GT_FREE_CRITERION_SETS = ("all", "roi", "texture")
+DEFAULT_GT_FREE_CRITERIA = ("all", "texture")
+GT_FREE_SCORED = (*GT_FREE_MEASURES, "density")
+"""What a GT-free criterion reports (with ``n``, its number of pixels)."""
+OCCLUSION_TOLERANCE = 1.0
+"""A pixel is occluded when a pixel landing on the same right-view column has a disparity
+larger by more than this (px): slanted surfaces land neighbours on one column too."""
+LRC_THRESHOLD = 1.0
+"""Left-right check: inconsistent when ``|d_L(x) − d_R(round(x − d_L))|`` exceeds this (px)."""
+
+
+def is_gt_free(criterion: str) -> bool:
+    """Whether a criterion was scored without ground truth."""
+    return criterion.startswith(GT_FREE_PREFIX)
+
+
+def grey8(image: object, what: str) -> np.ndarray:
+    """A 2-D uint8 C-contiguous grey image, or a one-line error saying what came instead."""
+    array = np.asarray(image)
+    if array.ndim != 2 or array.dtype != np.uint8:
+        raise InputError(
+            f"{what} must be an 8-bit grey image, got {array.dtype} of shape {array.shape}"
+        )
+    return np.ascontiguousarray(array)
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _row_zbuffer(
+    coded: np.ndarray, include_missing: bool, zbuffer: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Largest disparity landing on each right-view column (rounded ``x − d``) of one row."""
+    width = coded.shape[0]
+    zbuffer[:] = -np.inf
+    for x in range(width):
+        raw = coded[x]
+        if raw > 0.0 or include_missing:
+            d = abs(raw)
+            target = int(np.floor(x - d + 0.5))
+            if 0 <= target < width and d > zbuffer[target]:
+                zbuffer[target] = d
+
+
+@njit(cache=True, nogil=True)
+def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Runs of equal cells along each row: starts, cell of each run, first run of each row.
+
+    A property of the partition (built once per frame), so scoring each method adds a run's
+    terms in registers instead of finding where the cell changes pixel by pixel.
+    """
+    height, width = cells.shape
+    count = 0
+    for y in range(height):
+        count += 1
+        for x in range(1, width):
+            count += 1 if cells[y, x] != cells[y, x - 1] else 0
+    starts = np.empty(count + 1, dtype=np.int64)
+    run_cells = np.empty(count, dtype=np.int32)
+    row_first = np.empty(height + 1, dtype=np.int64)
+    run = 0
+    for y in range(height):
+        row_first[y] = run
+        for x in range(width):
+            if x == 0 or cells[y, x] != cells[y, x - 1]:
+                starts[run] = x
+                run_cells[run] = cells[y, x]
+                run += 1
+    row_first[height] = run
+    starts[count] = width
+    return starts, run_cells, row_first
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def photometric_sums(
+    left: np.ndarray,
+    right: np.ndarray,
+    coded: np.ndarray,
+    include_missing: bool,
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray],
+    right_coded: np.ndarray,
+    tolerance: float,
+    lrc_threshold: float,
+    sums: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add one estimate's GT-free terms per cell (cells < 0: not evaluated).
+
+    ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
+    (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
+    ``ignore``. ``runs`` comes from :func:`cell_runs`. ``right_coded`` is the right-view
+    estimate coded the same way, or 0×0 for none.
+
+    Per row: the z-buffer, then every pixel's geometry (target column, interpolation weight,
+    whether it counts) in one pass without gathers, then per run of one cell the terms that
+    gather from the right image and the z-buffer: the passes vectorise, a fused loop did not.
+    """
+    starts, run_cells, row_first = runs
+    height, width = left.shape
+    floor = -np.inf if include_missing else 0.0  # coded values above it take part
+    zbuffer = np.empty(width, dtype=np.float32)
+    geometry = _row_buffers(width)
+    check = right_coded.shape[0] == height
+    for y in range(height):
+        _row_zbuffer(coded[y], include_missing, zbuffer)
+        _row_geometry(coded[y], floor, geometry)
+        for run in range(row_first[y], row_first[y + 1]):
+            cell = run_cells[run]
+            if cell < 0:
+                continue
+            start = starts[run]
+            stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
+            n_valid, n_vpe, sum_vpe = _run_vpe(
+                left[y], right[y], coded[y], zbuffer, geometry, start, stop, tolerance
+            )
+            sums[cell, k.FIELD_N] += stop - start
+            sums[cell, k.FIELD_VALID] += n_valid
+            sums[cell, k.FIELD_N_VPE] += n_vpe
+            sums[cell, k.FIELD_SUM_VPE] += sum_vpe
+            if check:
+                n_lrc, n_bad = _run_lrc(right_coded[y], floor, geometry, start, stop, lrc_threshold)
+                sums[cell, k.FIELD_N_LRC] += n_lrc
+                sums[cell, k.FIELD_LRC] += n_bad
+
+
+@njit(cache=True, nogil=True)
+def _row_buffers(
+    width: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Row buffers: disparity, left interpolation column, its weight, rounded target, counted."""
+    return (
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+        np.empty(width, dtype=np.float64),
+        np.empty(width, dtype=np.int64),
+        np.empty(width, dtype=np.bool_),
+    )
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
+def _row_geometry(
+    coded: np.ndarray,
+    floor: float,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """Where each pixel of one row lands in the right view (``x − d``), clamped to the row.
+
+    The interpolation column ``x0`` stops at ``W − 2`` so that ``x0 + 1`` is always inside
+    (``W ≥ 2``): at ``x − d = W − 1`` the weight is then 1, the same value.
+    """
+    disparity, column, weight, target, counted = geometry
+    last = coded.shape[0] - 1
+    for x in range(coded.shape[0]):
+        raw = coded[x]
+        d = np.float64(abs(raw))
+        source = x - d
+        clamped = min(max(source, 0.0), np.float64(last))
+        x0 = min(int(clamped), last - 1)  # images are at least 2 px wide
+        disparity[x] = d
+        column[x] = x0
+        weight[x] = clamped - x0
+        target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
+        counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
+def _run_vpe(
+    left: np.ndarray,
+    right: np.ndarray,
+    coded: np.ndarray,
+    zbuffer: np.ndarray,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    start: int,
+    stop: int,
+    tolerance: float,
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Valid estimates, pixels in vpe and their Σ|I_L − I_R(x − d)| over ``[start, stop)``."""
+    disparity, column, weight, target, counted = geometry
+    n_valid = 0.0
+    n_vpe = 0.0
+    sum_vpe = 0.0
+    for x in range(start, stop):  # branch-free: holes and occlusions are not predictable
+        visible = counted[x] & ~(zbuffer[target[x]] > disparity[x] + tolerance)
+        x0 = column[x]
+        low = np.float64(right[x0])
+        predicted = low + weight[x] * (np.float64(right[x0 + 1]) - low)
+        difference = abs(np.float64(left[x]) - predicted)
+        n_valid += 1.0 if coded[x] > 0.0 else 0.0
+        n_vpe += 1.0 if visible else 0.0
+        sum_vpe += difference if visible else 0.0
+    return n_valid, n_vpe, sum_vpe
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _run_lrc(
+    right_coded: np.ndarray,
+    floor: float,
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    start: int,
+    stop: int,
+    lrc_threshold: float,
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Pixels left-right checked and the inconsistent ones among them over ``[start, stop)``."""
+    disparity, _, _, target, counted = geometry
+    n_lrc = 0.0
+    n_bad = 0.0
+    for x in range(start, stop):
+        other = right_coded[target[x]]
+        checked = counted[x] & (other > floor)
+        n_lrc += 1.0 if checked else 0.0
+        n_bad += 1.0 if checked & (abs(disparity[x] - abs(other)) > lrc_threshold) else 0.0
+    return n_lrc, n_bad
+
+
+@dataclass(frozen=True)
+class ImagePair:
+    """The left and right rectified images of one frame with their GT-free partition.
+
+    Build it once per frame with :meth:`GroundTruthFree.pair` and score every method on it.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    partition: crit.Partition
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Runs of equal cells along the rows (:func:`cell_runs`)."""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image size (rows, columns)."""
+        return self.partition.shape
+
+
+class GroundTruthFree:
+    """Scores estimated disparity maps by the images alone (``vpe``, ``lrc``, ``density``).
+
+    >>> free = GroundTruthFree(("all", "texture"))
+    >>> scores = free.score(free.pair(left, right), est)  # doctest: +SKIP
+    >>> scores["gtfree:textured"]["vpe"]  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA,
+        missing: str = "interpolate",
+        *,
+        roi_names: Mapping[int, str] | None = None,
+        texture_window: int = crit.TEXTURE_WINDOW,
+        texture_threshold: float = crit.TEXTURE_THRESHOLD,
+        occlusion_tolerance: float = OCCLUSION_TOLERANCE,
+        lrc_threshold: float = LRC_THRESHOLD,
+    ) -> None:
+        if isinstance(criteria, str):
+            criteria = (criteria,)
+        chosen = tuple(dict.fromkeys(criteria))
+        unknown = [c for c in chosen if c not in GT_FREE_CRITERION_SETS]
+        if unknown or not chosen:
+            raise ConfigurationError(
+                f"unknown ground-truth-free criterion set '{', '.join(unknown) or '(none)'}'; "
+                f"choose from {', '.join(GT_FREE_CRITERION_SETS)}"
+            )
+        if missing not in POLICIES:
+            raise ConfigurationError(
+                f"unknown missing-estimate policy '{missing}'; choose from {', '.join(POLICIES)}"
+            )
+        self.criteria = chosen
+        self.missing = missing
+        self.roi_names = dict(roi_names) if roi_names else None
+        self.texture_window = int(texture_window)
+        self.texture_threshold = float(texture_threshold)
+        self.occlusion_tolerance = float(occlusion_tolerance)
+        self.lrc_threshold = float(lrc_threshold)
+        self.thresholds = thresholds_for(GT_FREE_SCORED, 1.0)
+        self._local = threading.local()
+
+    def pair(self, left: object, right: object, roi: np.ndarray | None = None) -> ImagePair:
+        """Check the images and build the GT-free criteria from the left one (once per frame)."""
+        left8 = grey8(left, "the left image")
+        right8 = grey8(right, "the right image")
+        if left8.shape[1] < 2:
+            raise InputError(f"the images are {left8.shape[1]} px wide: at least 2 are needed")
+        if left8.shape != right8.shape:
+            raise ShapeMismatchError(
+                f"the right image is {right8.shape[1]}×{right8.shape[0]} but the left image is "
+                f"{left8.shape[1]}×{left8.shape[0]}"
+            )
+        everywhere = np.ones(left8.shape, bool)
+        sets = []
+        for name in self.criteria:
+            if name == "all":
+                sets.append(crit.all_set(everywhere))
+            elif name == "texture":
+                sets.append(crit.texture_set(left8, self.texture_window, self.texture_threshold))
+            elif roi is None:
+                raise ConfigurationError(
+                    "the 'roi' criterion set needs a region-of-interest mask or label image"
+                )
+            else:
+                sets.append(crit.roi_set(everywhere, np.asarray(roi), self.roi_names))
+        partition = crit.build_partition(everywhere, sets)
+        return ImagePair(left8, right8, partition, cell_runs(partition.cells))
+
+    def score(
+        self,
+        pair: ImagePair,
+        est: np.ndarray,
+        *,
+        est_range: tuple[float, float] | None = None,
+        est_right: np.ndarray | None = None,
+        right_range: tuple[float, float] | None = None,
+    ) -> Scores:
+        """Score one estimate on ``gtfree:`` criteria (``lrc`` only with ``est_right``)."""
+        coded = self._coded("left", est, est_range, pair.shape, "the estimate")
+        right_coded = (
+            np.zeros((0, 0), np.float32)
+            if est_right is None
+            else self._coded("right", est_right, right_range, pair.shape, "the right-view estimate")
+        )
+        partition = pair.partition
+        sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
+        photometric_sums(
+            pair.left,
+            pair.right,
+            coded,
+            self.missing != "ignore",
+            pair.runs,
+            right_coded,
+            self.occlusion_tolerance,
+            self.lrc_threshold,
+            sums,
+        )
+        return Scores(
+            criteria=tuple(GT_FREE_PREFIX + name for name in partition.criteria),
+            measures=GT_FREE_SCORED,
+            sums=partition.membership.astype(np.float64) @ sums,
+            thresholds=self.thresholds,
+            relative=True,
+            policy=self.missing,
+        )
+
+    def criterion_names(self) -> tuple[str, ...]:
+        """The ``gtfree:`` criteria every scored frame has, in order (known without images)."""
+        names: list[str] = []
+        for name in self.criteria:
+            if name == "all":
+                names.append("all")
+            elif name == "texture":
+                names.extend(crit.TEXTURE)
+            elif self.roi_names:
+                names.extend((*(self.roi_names[v] for v in sorted(self.roi_names)), "unlabelled"))
+            else:
+                names.extend(("roi", "elsewhere"))
+        return tuple(GT_FREE_PREFIX + name for name in dict.fromkeys(names))
+
+    def empty(self) -> Scores:
+        """Scores of a frame whose images could not be used: the criteria with zero sums."""
+        criteria = self.criterion_names()
+        return Scores(
+            criteria=criteria,
+            measures=GT_FREE_SCORED,
+            sums=np.zeros((len(criteria), FIELDS), dtype=np.float64),
+            thresholds=self.thresholds,
+            relative=True,
+            policy=self.missing,
+        )
+
+    def _coded(
+        self,
+        slot: str,
+        est: np.ndarray,
+        est_range: tuple[float, float] | None,
+        shape: tuple[int, int],
+        what: str,
+    ) -> np.ndarray:
+        """The estimate coded by the missing policy (validity in the sign), in a thread buffer."""
+        estimate = as_disparity(est, what)
+        if estimate.shape != shape:
+            raise ShapeMismatchError(
+                f"{what} is {estimate.shape[1]}×{estimate.shape[0]} but the images are "
+                f"{shape[1]}×{shape[0]}"
+            )
+        buffer = getattr(self._local, slot, None)
+        if buffer is None or buffer.shape != shape:
+            buffer = np.empty(shape, dtype=np.float32)
+            setattr(self._local, slot, buffer)
+        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        k.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
+        return buffer
+
+
+def joined(gt: Scores | None, free: Scores | None) -> Scores:
+    """One method's GT scores and GT-free scores as one :class:`Scores` (rows side by side).
+
+    The GT-free rows keep their ``gtfree:`` names; :class:`Scores` reports GT measures only on
+    GT rows and GT-free measures only on ``gtfree:`` rows.
+    """
+    if gt is None or free is None:
+        chosen = gt if gt is not None else free
+        if chosen is None:
+            raise ConfigurationError("no scores to join")
+        return chosen
+    if gt.policy != free.policy:
+        raise ConfigurationError(
+            f"GT scores under '{gt.policy}' and GT-free scores under '{free.policy}'"
+        )
+    return Scores(
+        criteria=(*gt.criteria, *free.criteria),
+        measures=tuple(dict.fromkeys((*gt.measures, *GT_FREE_MEASURES))),
+        sums=np.vstack([gt.sums, free.sums]),
+        thresholds=gt.thresholds,
+        quantiles=dict(gt.quantiles),
+        relative=gt.relative,
+        overlapping=gt.overlapping,
+        policy=gt.policy,
+    )
+
+
+def concordance(a: Sequence[float], b: Sequence[float]) -> tuple[int, int, int, int]:
+    """Pairs of items ordered alike and unlike by ``a`` and ``b``, and tied in one only.
+
+    ``(concordant, discordant, tied in a only, tied in b only)``; pairs tied in both count
+    nowhere.
+    """
+    concordant = discordant = ties_a = ties_b = 0
+    for i in range(len(a)):
+        for j in range(i + 1, len(a)):
+            da = np.sign(a[i] - a[j])
+            db = np.sign(b[i] - b[j])
+            if da == 0 and db != 0:
+                ties_a += 1
+            elif db == 0 and da != 0:
+                ties_b += 1
+            elif da * db > 0:
+                concordant += 1
+            elif da * db < 0:
+                discordant += 1
+    return concordant, discordant, ties_a, ties_b
+
+
+def kendall_tau(a: Sequence[float], b: Sequence[float]) -> float:
+    """Kendall's τ-b of two rankings of the same items (nan when either is constant).
+
+    How well a GT-free measure orders methods as a GT measure does: 1 the same order, 0
+    unrelated, −1 reversed. Ties in either ranking are handled (τ-b).
+    """
+    concordant, discordant, ties_a, ties_b = concordance(a, b)
+    untied = concordant + discordant
+    denominator = math.sqrt((untied + ties_b) * (untied + ties_a))
+    return (concordant - discordant) / denominator if denominator else math.nan
