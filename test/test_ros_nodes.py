@@ -493,6 +493,17 @@ def synthetic_scores(frames: int) -> list[tuple[int, dict[str, Any]]]:
     return result
 
 
+def evaluator_of(ros: Ros, config: Any, **parameters: Any) -> Any:
+    """An evaluator node for the topics of a core configuration (and more parameters)."""
+    return ros.evaluator(
+        methods=[f"{m}:{t}" for m, t in config.methods.items()],
+        gt_topic=config.gt_topic,
+        left_camera_info=config.left_info_topic,
+        right_camera_info=config.right_info_topic,
+        **parameters,
+    )
+
+
 def summarizer_with_publisher(ros: Ros, **parameters: Any) -> tuple[Any, Any]:
     """A summarizer node and a publisher of /dispeval/scores it has matched."""
     node = ros.summarizer(**parameters)
@@ -630,12 +641,7 @@ def test_end_to_end_over_ros_equals_dispeval_bag(ros: Ros, tmp_path: Path) -> No
 
     out = tmp_path / "live"
     summarizer = ros.summarizer(output_dir=str(out), summary_every=5, drain_timeout=2.0)
-    evaluator = ros.evaluator(
-        methods=[f"{m}:{t}" for m, t in config.methods.items()],
-        gt_topic=config.gt_topic,
-        left_camera_info=config.left_info_topic,
-        right_camera_info=config.right_info_topic,
-    )
+    evaluator = evaluator_of(ros, config)
     sensor = rclpy.qos.qos_profile_sensor_data
     pubs = {
         t: ros.helper.create_publisher(k, t, sensor) for t, k in input_types(config).items()
@@ -763,11 +769,9 @@ def test_overload_ten_times_the_recorded_rate_for_30_s(ros: Ros, tmp_path: Path)
     config = sample_config(bag)
     out = tmp_path / "results"
     summarizer = ros.summarizer(output_dir=str(out), summary_every=10, drain_timeout=2.0)
-    evaluator = ros.evaluator(
-        methods=[f"{m}:{t}" for m, t in config.methods.items()],
-        gt_topic=config.gt_topic,
-        left_camera_info=config.left_info_topic,
-        right_camera_info=config.right_info_topic,
+    evaluator = evaluator_of(
+        ros,
+        config,
         bag=str(bag),
         bag_rate=10.0,
         bag_loop=True,
