@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sample_feed import sample_bag, sample_config, topic_args
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core import Evaluator
@@ -211,3 +212,59 @@ def test_make_bag_of_a_scene_it_cannot_read_leaves_no_file(
         assert main(["make-bag", str(out), "--scene", str(scene), "--storage", storage]) == 2
         one_line_error(capsys, str(scene))
         assert not out.exists()
+
+
+# -- dispeval bag: every mistake refused before anything is written ---------------------------
+
+BAG_MISTAKES = {
+    "typo-topic": ["--method", "typo=/stereo/typo/disparity"],
+    "wrong-type": ["--method", "wrong=/stereo/left/camera_info"],
+    "jobs-0": ["--jobs", "0"],
+    "jobs-and-scheduler": ["--jobs", "2", "--scheduler", "local:2"],
+    "negative-tolerance": ["--tolerance", "-1"],
+    "nan-lateness": ["--lateness", "nan"],
+    "unknown-objective": ["--objective-measures", "a99"],
+    "slice-nan": ["--slice", "nan"],
+    "slice-inf": ["--slice", "inf"],
+    "slice-zero": ["--slice", "0"],
+    "gt-scale-zero": ["--gt-scale", "0"],
+}
+
+
+@pytest.mark.parametrize("mistake", sorted(BAG_MISTAKES))
+def test_a_refused_bag_run_leaves_nothing_behind(
+    mistake: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = sample_bag()
+    out = tmp_path / "R"
+    args = ["bag", str(bag), *topic_args(sample_config(bag)), "--out", str(out), "--quiet"]
+    assert main([*args, *BAG_MISTAKES[mistake]]) == 2
+    one_line_error(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("which", ["missing", "corrupt", "second-missing"])
+def test_a_bad_bag_leaves_nothing_and_the_fixed_command_runs(
+    which: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = sample_bag()
+    bad = tmp_path / "bad.mcap"
+    if which == "corrupt":
+        bad.write_bytes(b"\\x89MCAP0\\r\\n" + bytes(100))
+    bags = [str(bag), str(bad)] if which == "second-missing" else [str(bad)]
+    out = tmp_path / "R"
+    topics = topic_args(sample_config(bag))
+    assert main(["bag", *bags, *topics, "--out", str(out), "--quiet"]) == 2
+    one_line_error(capsys, str(bad))
+    assert not out.exists()
+    assert main(["bag", str(bag), *topics, "--out", str(out), "--quiet"]) == 0  # no --resume
+
+
+def test_a_results_folder_that_never_got_a_unit_is_not_results(tmp_path: Path) -> None:
+    """A run killed before its first unit: the next run starts afresh, without --resume."""
+    ResultsStore.create(tmp_path / "R", {**CONFIG, "delta": 3.0}).close()
+    with ResultsStore.create(tmp_path / "R", CONFIG) as store:  # another configuration even
+        assert "delta" not in store.config()  # the stale configuration is gone
+        store.add_unit("s", "u0", some_scores())
+    with pytest.raises(ConfigurationError, match="already holds results"):
+        ResultsStore.create(tmp_path / "R", CONFIG)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from dispeval_ros.cli import protocol_eval, streams
 from dispeval_ros.cli.output import print_json
@@ -63,13 +63,26 @@ def slice_option(text: str) -> int | None:
         return None
     try:
         slice_ns = round(float(text) * 1e9)
-    except ValueError:
+    except (ValueError, OverflowError):  # not a number, nan, inf
         slice_ns = 0
     if slice_ns <= 0:
         raise ConfigurationError(
             f"--slice must be a positive number of seconds or auto, got {text}"
         )
     return slice_ns
+
+
+def check_before_writing(args: argparse.Namespace, config: Any) -> None:
+    """Every option, bag and topic is checked before the results folder is created.
+
+    A run refused at start leaves nothing behind, so the corrected command runs as it is.
+    """
+    from dispeval_ros.offline.executors import check_engine
+    from dispeval_ros.offline.units import check_topics, open_bag
+
+    check_engine(args.jobs, args.scheduler)
+    for bag in args.bags:
+        check_topics(open_bag(bag), config)
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -82,6 +95,7 @@ def run_command(args: argparse.Namespace) -> int:
     preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")
     slice_ns = slice_option(args.slice)
+    check_before_writing(args, config)
     record = {
         **config.as_record(),
         "slice_ns": "auto" if slice_ns is None else slice_ns,

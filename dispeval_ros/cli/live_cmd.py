@@ -77,13 +77,7 @@ def run_command(args: argparse.Namespace) -> int:
         raise ConfigurationError(f"--duration must be positive, got {args.duration}")
     if args.queue_size < 1:
         raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
-    config = streams.core_config(args, "live streams")
-    missing = [m for m in args.objective_measures if m not in config.scored_measures]
-    if missing:
-        raise ConfigurationError(
-            f"objective measure(s) {', '.join(missing)} are not among the measures scored "
-            f"({', '.join(config.scored_measures)})"
-        )
+    config = streams.core_config(args, "live streams")  # also checks the objective measures
 
     from dispeval_ros.dds.evaluator import warm_up
     from dispeval_ros.dds.session import LiveSession

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -149,7 +150,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         from dispeval_ros.io.lidar import read_extrinsic
 
         extrinsic = tuple(float(v) for v in read_extrinsic(args.extrinsic).reshape(-1))
-    return CoreConfig(
+    config = CoreConfig(
         methods=_methods(args.method),
         gt_topic=args.gt_cloud if cloud else (args.gt if has_gt else args.left_image),
         gt_kind="pointcloud" if cloud else (args.gt_kind if has_gt else "none"),
@@ -167,6 +168,20 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         missing=evaluator.missing,
         delta=evaluator.delta,
         mu=evaluator.mu,
-        tolerance_ns=round(args.tolerance * 1e6),
-        lateness_ns=round(args.lateness * 1e6),
+        tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * 1e6),
+        lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * 1e6),
     )
+    unknown = [m for m in args.objective_measures if m not in config.scored_measures]
+    if unknown:  # found now, not after the whole recording was scored
+        raise ConfigurationError(
+            f"--objective-measures {' '.join(unknown)}: not among the measures scored "
+            f"({', '.join(config.scored_measures)})"
+        )
+    return config
+
+
+def non_negative_ms(value: float, option: str) -> float:
+    """A time option in ms: a finite number ≥ 0 (one line naming the option)."""
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigurationError(f"{option} must be a number of ms ≥ 0, got {value:g}")
+    return value

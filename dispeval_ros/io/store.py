@@ -246,6 +246,9 @@ class ResultsStore:
             raise
         try:
             state = _state(connection, path)
+            if state == "results" and _holds_nothing(connection):
+                _clear(connection)  # a run that stopped before its first unit left no results
+                state = "empty"
             if state == "results" and not resume:
                 raise ResultsConflictError(f"{directory} already holds results", resumable=True)
             connection.execute("PRAGMA journal_mode = WAL")
@@ -979,6 +982,31 @@ def _state(connection: sqlite3.Connection, path: Path) -> str:
         f"{path} is an SQLite database but not dispeval results; expected {RESULTS_FILE} "
         "written by 'dispeval bag' or the summarizer"
     )
+
+
+def _holds_nothing(connection: sqlite3.Connection) -> bool:
+    """A results database no unit was ever written to (a run refused or killed at start)."""
+    try:
+        return connection.execute("SELECT COUNT(*) FROM units").fetchone()[0] == 0
+    except sqlite3.DatabaseError:  # no units table: not ours to judge, _state said results
+        return False
+
+
+def _clear(connection: sqlite3.Connection) -> None:
+    """Drop every table (and the provenance record), as before the first run."""
+    tables = [
+        name for (name,) in connection.execute("SELECT name FROM sqlite_master WHERE type='table'")
+    ]
+    connection.execute("BEGIN IMMEDIATE")
+    try:
+        for table in tables:
+            connection.execute(f'DROP TABLE "{table}"')
+        connection.execute("PRAGMA application_id = 0")
+        connection.execute("PRAGMA user_version = 0")
+    except BaseException:
+        connection.execute("ROLLBACK")
+        raise
+    connection.execute("COMMIT")
 
 
 def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -> None:

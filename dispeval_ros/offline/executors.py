@@ -166,13 +166,18 @@ def _worker_lost(error: BaseException) -> str:
     return f"{type(error).__name__}: {' '.join(str(error).split())}"
 
 
-def make_executor(config: CoreConfig, jobs: int = 1, scheduler: str | None = None) -> Executor:
-    """The executor the options ask for: a Dask scheduler, ``jobs`` processes, or in process."""
+def check_engine(jobs: int, scheduler: str | None) -> None:
+    """The engine options are consistent (checked before anything is created)."""
     if jobs < 1:
         raise ConfigurationError(f"--jobs must be at least 1, got {jobs}")
+    if scheduler is not None and jobs != 1:
+        raise ConfigurationError("give --jobs or --scheduler, not both")
+
+
+def make_executor(config: CoreConfig, jobs: int = 1, scheduler: str | None = None) -> Executor:
+    """The executor the options ask for: a Dask scheduler, ``jobs`` processes, or in process."""
+    check_engine(jobs, scheduler)
     if scheduler is not None:
-        if jobs != 1:
-            raise ConfigurationError("give --jobs or --scheduler, not both")
         from dispeval_ros.offline.dask_executor import DaskExecutor
 
         return DaskExecutor(config, scheduler)
