@@ -217,42 +217,58 @@ def database_content(folder: Path) -> tuple[list[tuple], ...]:
     return content
 
 
-def test_killed_run_resumes_to_the_same_database(tmp_path: Path) -> None:
+def group_alive(pgid: int) -> bool:
+    """Whether any process of a process group is still running (zombies do not count)."""
+    for status in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = status.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            return True
+    return False
+
+
+@pytest.mark.parametrize(
+    ("how", "jobs"),
+    [("SIGKILL", "1"), ("SIGKILL", "2"), ("SIGTERM", "2"), ("SIGINT", "2")],
+)
+def test_killed_run_resumes_to_the_same_database(how: str, jobs: str, tmp_path: Path) -> None:
+    """Killed, terminated or interrupted at a random moment: --resume gives the same database,
+    and no process of the run is left (pool workers end with their driver)."""
     bag = tmp_path / "long"
-    write_bag(
-        bag,
-        synthetic_frames(24, 192, 64, 10.0, seed=2),
-        storage="rosbag2-sqlite3",
-    )
-    command = [
-        sys.executable,
-        "-m",
-        "dispeval_ros",
-        *bag_args(bag, tmp_path / "killed", "--slice", "0.1"),
-    ]
-    reference = [
-        sys.executable,
-        "-m",
-        "dispeval_ros",
-        *bag_args(bag, tmp_path / "whole", "--slice", "0.1"),
-    ]
-    subprocess.run(reference, check=True, capture_output=True)
+    write_bag(bag, synthetic_frames(24, 192, 64, 10.0, seed=2), storage="rosbag2-sqlite3")
+    command = [sys.executable, "-m", "dispeval_ros", *bag_args(bag, tmp_path / "killed")]
+    command += ["--slice", "0.1", "--jobs", jobs]
+    reference = [sys.executable, "-m", "dispeval_ros", *bag_args(bag, tmp_path / "whole")]
+    subprocess.run([*reference, "--slice", "0.1"], check=True, capture_output=True)
     rng = random.Random(7)
     database = tmp_path / "killed" / "results.sqlite"
     for _attempt in range(20):
-        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        process = subprocess.Popen(
+            command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
+        )
         while not database.exists() and process.poll() is None:
             time.sleep(0.01)
         time.sleep(rng.uniform(0.0, 0.6))
         if process.poll() is None:
-            os.kill(process.pid, signal.SIGKILL)
-            process.wait()
+            os.kill(process.pid, getattr(signal, how))
+            _, err = process.communicate(timeout=60)
             break
         process.wait()  # finished before the kill: start over with a fresh folder
         for file in (tmp_path / "killed").iterdir():
             file.unlink()
     else:
         pytest.fail("the run always finished before it could be killed")
+    deadline = time.monotonic() + 10
+    while group_alive(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not group_alive(process.pid), "a process of the killed run is still running"
+    if how != "SIGKILL":  # a clean stop: one line, no traceback
+        text = err.decode(errors="replace")
+        assert process.returncode == (143 if how == "SIGTERM" else 130), text
+        assert text.count("\n") == 1, text
+        assert "Traceback" not in text
     resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, check=False)
     assert resumed.returncode == 0, resumed.stderr
     assert database_content(tmp_path / "killed") == database_content(tmp_path / "whole")

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
+from types import FrameType
 
 from dispeval_ros import __version__
 from dispeval_ros.cli import (
@@ -56,10 +59,21 @@ def cli_advice(conflict: ResultsConflictError) -> ConfigurationError:
     )
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (timeout, docker, CI): stop as on Ctrl-C, cleanly and resumably."""
+
+
+def _on_sigterm(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a command; user mistakes print one line and exit with status 2."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         try:
             return int(args.run(args))
@@ -68,11 +82,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except DispevalError as error:
         print(f"dispeval {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except Terminated:
+        print(f"dispeval {args.command}: terminated (what was stored is kept)", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
-        print(f"dispeval {args.command}: interrupted", file=sys.stderr)
+        print(f"dispeval {args.command}: interrupted (what was stored is kept)", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,11 @@ what to retry). Workers stay alive across units, so each opens a bag once.
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
+import signal
+import sys
 import threading
 from collections import deque
 from collections.abc import Sequence
@@ -84,6 +88,25 @@ _worker_config: dict[str, CoreConfig] = {}
 def _start_worker(config: CoreConfig) -> None:
     forget_bags()
     _worker_config["config"] = config
+    end_with_the_parent()
+
+
+def end_with_the_parent() -> None:
+    """A pool worker stops when its driver does, however the driver ends.
+
+    Ctrl-C (sent to the whole process group) is the driver's to handle: it stops taking units
+    and shuts the pool down. If the driver is killed outright, Linux sends the worker SIGKILL
+    (``PR_SET_PDEATHSIG``), so no worker outlives it or prints tracebacks after the prompt.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            return
+        if os.getppid() == 1:  # the driver died before the request took effect
+            os._exit(1)
 
 
 def _run_in_worker(unit: Unit) -> UnitRows | UnitFailure:
