@@ -99,9 +99,7 @@ def test_a_corrupt_png_is_our_one_line_without_opencv_warnings(
 def some_scores() -> list[FrameScores]:
     evaluator = Evaluator(("all",), ("bmp", "mae", "density"))
     gt = np.full((20, 30), 10.0)
-    return [
-        FrameScores("s", k, "m", evaluator.score(gt, gt + 0.5 * k)) for k in range(1, 4)
-    ]
+    return [FrameScores("s", k, "m", evaluator.score(gt, gt + 0.5 * k)) for k in range(1, 4)]
 
 
 def stored_results(folder: Path) -> Path:
@@ -131,7 +129,9 @@ def test_a_full_disk_is_one_line_and_keeps_what_was_stored(tmp_path: Path) -> No
             for k in range(50)
             for j in range(20)
         ]
-        with pytest.raises(InputError, match=r"cannot write the results \(database or disk is full"):
+        with pytest.raises(
+            InputError, match=r"cannot write the results \(database or disk is full"
+        ):
             store.add_unit("s", "u1", big)
     finally:
         store.close()
@@ -268,3 +268,15 @@ def test_a_results_folder_that_never_got_a_unit_is_not_results(tmp_path: Path) -
         store.add_unit("s", "u0", some_scores())
     with pytest.raises(ConfigurationError, match="already holds results"):
         ResultsStore.create(tmp_path / "R", CONFIG)
+
+
+def test_sizes_read_width_by_height_everywhere(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Headers say W×H (1242×375), so size errors say W×H too."""
+    gt = tmp_path / "gt.pfm"
+    write_pfm(gt, np.full((40, 60), 10.0, np.float32))
+    est = tmp_path / "est.pfm"
+    write_pfm(est, np.full((30, 60), 10.0, np.float32))
+    assert main(["eval", "--gt", str(gt), "--est", f"m={est}"]) == 2
+    one_line_error(capsys, "the estimate is 60×30 but the ground truth is 60×40")

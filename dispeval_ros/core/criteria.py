@@ -74,11 +74,16 @@ def valid_ground_truth(gt: np.ndarray, all_mask: np.ndarray | None = None) -> np
 
 def _check_shape(what: str, array: np.ndarray, gt: np.ndarray) -> None:
     if array.shape != gt.shape:
-        raise ShapeMismatchError(f"{what} is {_size(array)} but the ground truth is {_size(gt)}")
+        raise ShapeMismatchError(
+            f"{what} is {size_text(array.shape)} but the ground truth is {size_text(gt.shape)}"
+        )
 
 
-def _size(array: np.ndarray) -> str:
-    return "×".join(str(n) for n in array.shape)
+def size_text(shape: tuple[int, ...]) -> str:
+    """An image size as users read it everywhere: width × height (× channels)."""
+    if len(shape) < 2:
+        return "×".join(str(n) for n in shape)
+    return "×".join(str(n) for n in (shape[1], shape[0], *shape[2:]))
 
 
 def _flat(array: np.ndarray, dtype: type | None = None) -> np.ndarray:
@@ -322,7 +327,8 @@ def roi_set(
     """
     if roi.shape != valid.shape:
         raise ShapeMismatchError(
-            f"the region-of-interest image is {_size(roi)} but the ground truth is {_size(valid)}"
+            f"the region-of-interest image is {size_text(roi.shape)} but the ground truth is "
+            f"{size_text(valid.shape)}"
         )
     if not names:
         labels = np.where(roi.astype(bool, copy=False), 0, 1).astype(np.int32)

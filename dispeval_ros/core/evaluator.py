@@ -258,8 +258,8 @@ class Evaluator:
         mask = np.asarray(mask)
         if mask.shape != gt.shape:
             raise ShapeMismatchError(
-                f"the '{name}' mask is {'×'.join(map(str, mask.shape))} but the ground truth is "
-                f"{'×'.join(map(str, gt.shape))}"
+                f"the '{name}' mask is {crit.size_text(mask.shape)} but the ground truth is "
+                f"{crit.size_text(gt.shape)}"
             )
         return mask.astype(bool, copy=False)
 
@@ -353,8 +353,8 @@ class Evaluator:
         estimate = as_disparity(est, "the estimate")
         if estimate.shape != reference.shape:
             raise ShapeMismatchError(
-                f"the estimate is {estimate.shape[0]}×{estimate.shape[1]} but the ground truth is "
-                f"{reference.shape[0]}×{reference.shape[1]}"
+                f"the estimate is {crit.size_text(estimate.shape)} but the ground truth is "
+                f"{crit.size_text(reference.shape)}"
             )
         partition = reference.partition
         lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
