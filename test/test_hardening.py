@@ -280,3 +280,23 @@ def test_sizes_read_width_by_height_everywhere(
     write_pfm(est, np.full((30, 60), 10.0, np.float32))
     assert main(["eval", "--gt", str(gt), "--est", f"m={est}"]) == 2
     one_line_error(capsys, "the estimate is 60×30 but the ground truth is 60×40")
+
+
+def test_bag_warns_when_camera_info_exists_but_is_not_used(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """DisparityImage f and t carry no doffs: say so, and say which camera was used."""
+    bag = sample_bag()
+    config = sample_config(bag)
+    methods = [a for m, t in config.methods.items() for a in ("--method", f"{m}={t}")]
+    out = tmp_path / "R"
+    assert main(["bag", str(bag), "--gt", config.gt_topic, *methods, "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "warning:" in captured.err
+    assert "/stereo/left/camera_info" in captured.err
+    assert "camera: from each DisparityImage's f and t (no doffs)" in captured.out
+    args = ["bag", str(bag), *topic_args(config), "--out", str(tmp_path / "S")]
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err
+    assert "camera: from CameraInfo /stereo/left/camera_info and" in captured.out

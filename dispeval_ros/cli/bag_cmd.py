@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -77,12 +78,29 @@ def check_before_writing(args: argparse.Namespace, config: Any) -> None:
 
     A run refused at start leaves nothing behind, so the corrected command runs as it is.
     """
+    from dispeval_ros.live.core import CAMERA_INFO_TYPE
     from dispeval_ros.offline.executors import check_engine
     from dispeval_ros.offline.units import check_topics, open_bag
 
     check_engine(args.jobs, args.scheduler)
     for bag in args.bags:
-        check_topics(open_bag(bag), config)
+        source = open_bag(bag)
+        check_topics(source, config)
+        infos = [t for t, i in source.topics.items() if i.msgtype == CAMERA_INFO_TYPE]
+        if infos and not config.left_info_topic:
+            print(
+                f"dispeval bag: warning: {bag} has CameraInfo topics ({', '.join(infos)}) but "
+                "--camera-info was not given: the camera comes from each DisparityImage's f and "
+                "t, which carry no doffs (SZE and depth measures are wrong if doffs ≠ 0)",
+                file=sys.stderr,
+            )
+
+
+def camera_text(config: Any) -> str:
+    """Which camera the depth measures used (printed with the summary)."""
+    if config.left_info_topic:
+        return f"camera: from CameraInfo {config.left_info_topic} and {config.right_info_topic}"
+    return "camera: from each DisparityImage's f and t (no doffs)"
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -133,5 +151,6 @@ def run_command(args: argparse.Namespace) -> int:
     )
     if preset:
         print(protocol_eval.preset_note(args.protocol))
+    print(camera_text(config))
     print(run_summary_text(summary, problems))
     return 0
