@@ -19,7 +19,6 @@ from pathlib import Path
 
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import EvaluationCore
 from dispeval_ros.offline.bag_eval import evaluate_bags
 from dispeval_ros.offline.make_bag import (
     GT_TOPIC,
@@ -27,6 +26,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
+from dispeval_ros.stream.core import EvaluationCore
 from dispeval_ros.testbed import default_methods
 
 METHODS = ("bm_fast", "sgbm", "sgbm_3way")

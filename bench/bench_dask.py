@@ -27,7 +27,6 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.bag_eval import evaluate_bags, sequence_names
 from dispeval_ros.offline.dask_executor import DaskExecutor
 from dispeval_ros.offline.make_bag import (
@@ -36,6 +35,7 @@ from dispeval_ros.offline.make_bag import (
     write_bag,
 )
 from dispeval_ros.offline.units import close_bags, plan_bag, run_unit
+from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.testbed import default_methods
 
 METHODS = ("bm_fast", "sgbm")

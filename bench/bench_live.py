@@ -21,9 +21,9 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
-from dispeval_ros.live.core import CoreConfig, EvaluationCore, FrameResult
-from dispeval_ros.live.runner import LiveEvaluator
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
+from dispeval_ros.stream.runner import LiveEvaluator
 from dispeval_ros.testbed import default_methods, make_driving_sequence
 
 METHODS = ("bm_fast", "sgbm", "sgbm_3way")

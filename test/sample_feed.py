@@ -19,9 +19,9 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig, MethodCounts
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO
 from dispeval_ros.offline.sample import find_sample_bag
+from dispeval_ros.stream.core import CoreConfig, MethodCounts
 
 MS = 1_000_000
 

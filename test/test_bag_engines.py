@@ -17,7 +17,6 @@ from test_bag_pipeline import METHODS, bag_args, database_content
 from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.bag_eval import RunReport, evaluate_bags
 from dispeval_ros.offline.dask_executor import DaskExecutor, check_worker
@@ -27,6 +26,7 @@ from dispeval_ros.offline.make_bag import (
     write_bag,
 )
 from dispeval_ros.offline.units import Unit, evaluate_unit
+from dispeval_ros.stream.core import CoreConfig
 
 SLICE = ("--slice", "0.2")
 

@@ -33,7 +33,6 @@ from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.vectors import StatusRecord, scores_from_status
 from dispeval_ros.offline.make_bag import (
     CLOUD_TOPIC,
     GT_TOPIC,
@@ -44,6 +43,7 @@ from dispeval_ros.offline.make_bag import (
     TF_STATIC_TOPIC,
 )
 from dispeval_ros.offline.sample import find_sample_bag
+from dispeval_ros.stream.vectors import StatusRecord, scores_from_status
 
 HAVE_DDS = importlib.util.find_spec("cyclonedds") is not None
 needs_dds = pytest.mark.skipif(
@@ -386,8 +386,8 @@ def test_a_looping_stream_makes_new_sequences(
     from dispeval_ros.dds.evaluator import warm_up
     from dispeval_ros.dds.player import BagPlayer
     from dispeval_ros.dds.session import LiveSession
-    from dispeval_ros.live.core import CoreConfig
-    from dispeval_ros.live.summarizer import SummarizerConfig
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.stream.summarizer import SummarizerConfig
 
     publisher, _ = transports
     name, topic = next(iter(methods.items()))

@@ -6,14 +6,14 @@ import pytest
 
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import MatchCounts
-from dispeval_ros.live.core import MethodCounts
-from dispeval_ros.live.delivery import (
+from dispeval_ros.stream.core import MethodCounts
+from dispeval_ros.stream.delivery import (
     DELIVERY_STATUS,
     DeliveryLedger,
     delivery_record,
     read_delivery,
 )
-from dispeval_ros.live.vectors import (
+from dispeval_ros.stream.vectors import (
     ERROR,
     GROUND_TRUTH,
     OK,

@@ -19,8 +19,8 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.core.gtfree import GroundTruthFree
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_from_msg, image_from_msg, image_to_msg, stamp_ns
-from dispeval_ros.live.core import CoreConfig, EvaluationCore
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_IMAGE, RIGHT_IMAGE
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 
 IMAGES = ["--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE]
 GT_FREE_ROWS = ("gtfree:all", "gtfree:textured", "gtfree:textureless")

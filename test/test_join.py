@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.live.join import StampJoiner
+from dispeval_ros.stream.join import StampJoiner
 
 MS = 1_000_000
 

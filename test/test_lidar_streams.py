@@ -27,7 +27,6 @@ from dispeval_ros.io.messages import (
     tf_static_to_msg,
 )
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig, EvaluationCore
 from dispeval_ros.offline.make_bag import (
     CAMERA_FRAME,
     CLOUD_TOPIC,
@@ -40,6 +39,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.testbed import default_methods, driving_setup, driving_world_at, render_stereo
 from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, simulate_scan
 

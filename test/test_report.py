@@ -35,7 +35,6 @@ import pytest
 from dispeval_ros.core import Scores, evaluate_models
 from dispeval_ros.core.measures import SEQUENCE_MEASURES, SUM_FIELDS, thresholds_for
 from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
-from dispeval_ros.offline.summary import summarize
 from dispeval_ros.report import data as report_data
 from dispeval_ros.report.data import (
     Selection,
@@ -47,6 +46,7 @@ from dispeval_ros.report.data import (
     recipe_values,
 )
 from dispeval_ros.report.html import write_report
+from dispeval_ros.summary import summarize
 
 XSS = "<img src=x onerror=alert(1)>"
 SCRIPT_END = "</script><script>alert(2)</script>"

@@ -243,7 +243,7 @@ def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(
                 received[stamp, record.name] = record
     # best effort into live: allow a lost input frame or two, never a wrong number
     assert len({stamp for stamp, _ in received}) >= len(gt_stamps) - 2, len(received)
-    scores_from_status = importlib.import_module("dispeval_ros.live.vectors").scores_from_status
+    scores_from_status = importlib.import_module("dispeval_ros.stream.vectors").scores_from_status
     for key, record in received.items():
         rebuilt = scores_from_status(record.values)
         np.testing.assert_array_equal(rebuilt.sums, reference[key].sums, err_msg=str(key))

@@ -2,7 +2,7 @@
 
 Messages are built with rclpy's generated classes (helpers mirroring the rosbags encoders of
 ``dispeval_ros.io.messages``) and published to the evaluator, whose ``/dispeval/scores`` must
-equal what :class:`~dispeval_ros.live.core.EvaluationCore` computes on the very same message
+equal what :class:`~dispeval_ros.stream.core.EvaluationCore` computes on the very same message
 objects, to the last bit. Skipped where rclpy is not installed (outside a ROS 2 environment);
 ``colcon test`` runs it.
 """
@@ -35,10 +35,17 @@ from dispeval_ros.core import Camera, Evaluator
 from dispeval_ros.core.measures import SEQUENCE_MEASURES
 from dispeval_ros.io.messages import image_from_msg, stamp_ns
 from dispeval_ros.io.store import MatchCounts, ResultsStore
-from dispeval_ros.live.core import EvaluationCore, FrameResult, MethodCounts
-from dispeval_ros.live.delivery import DELIVERY_STATUS, delivery_record, read_delivery
-from dispeval_ros.live.images import colour_error
-from dispeval_ros.live.vectors import (
+from dispeval_ros.ros.params import (
+    DOUBLE,
+    EVALUATOR_PARAMETERS,
+    INTEGER,
+    SUMMARIZER_PARAMETERS,
+    Param,
+)
+from dispeval_ros.stream.core import EvaluationCore, FrameResult, MethodCounts
+from dispeval_ros.stream.delivery import DELIVERY_STATUS, delivery_record, read_delivery
+from dispeval_ros.stream.images import colour_error
+from dispeval_ros.stream.vectors import (
     ERROR,
     OK,
     PROBLEM_KEY,
@@ -48,13 +55,6 @@ from dispeval_ros.live.vectors import (
     scores_from_status,
     scores_status,
     vector_labels,
-)
-from dispeval_ros.ros.params import (
-    DOUBLE,
-    EVALUATOR_PARAMETERS,
-    INTEGER,
-    SUMMARIZER_PARAMETERS,
-    Param,
 )
 
 rclpy = ros_import("rclpy")

@@ -78,9 +78,9 @@ def check_before_writing(args: argparse.Namespace, config: Any) -> None:
 
     A run refused at start leaves nothing behind, so the corrected command runs as it is.
     """
-    from dispeval_ros.live.core import CAMERA_INFO_TYPE
     from dispeval_ros.offline.executors import check_engine
     from dispeval_ros.offline.units import check_topics, open_bag
+    from dispeval_ros.stream.core import CAMERA_INFO_TYPE
 
     check_engine(args.jobs, args.scheduler)
     for bag in args.bags:
@@ -108,7 +108,7 @@ def run_command(args: argparse.Namespace) -> int:
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import evaluate_bags
     from dispeval_ros.offline.records import record_bag_provenance
-    from dispeval_ros.offline.summary import summarize
+    from dispeval_ros.summary import summarize
 
     preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")

@@ -13,7 +13,7 @@ from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera
 from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
 from dispeval_ros.core.objectives import objective_matrix
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
+from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
 
 def comma_list(text: str) -> list[str]:

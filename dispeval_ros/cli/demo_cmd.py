@@ -18,11 +18,11 @@ from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import objective_matrix
-from dispeval_ros.offline.summary import RunSummary
+from dispeval_ros.summary import RunSummary
 
 if TYPE_CHECKING:
     from dispeval_ros.io.store import ResultsStore
-    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.stream.core import CoreConfig
 
 HELP = "run the whole evaluation on the bundled sample bag (or one synthetic scene)"
 SHOWN = ("n", "density", "bmp", "mae", "rmse", "d1", "sze", "sze_mean", "bmpre")
@@ -65,7 +65,6 @@ def replay_sample(args: argparse.Namespace) -> int:
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.store import ResultsStore
-    from dispeval_ros.live.core import CoreConfig
     from dispeval_ros.offline.make_bag import (
         GT_TOPIC,
         LEFT_IMAGE,
@@ -75,7 +74,8 @@ def replay_sample(args: argparse.Namespace) -> int:
     )
     from dispeval_ros.offline.records import record_bag_provenance
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
-    from dispeval_ros.offline.summary import summarize
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.summary import summarize
 
     started = time.perf_counter()
     out = args.out or Path(tempfile.mkdtemp(prefix="dispeval-demo-"))
@@ -148,9 +148,9 @@ def robot_mode(
     """The same frames scored against the sample's LiDAR (None if the bag has no LiDAR)."""
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.io.store import ResultsStore
-    from dispeval_ros.live.core import CoreConfig
     from dispeval_ros.offline.make_bag import CLOUD_TOPIC, LEFT_INFO, RIGHT_INFO
-    from dispeval_ros.offline.summary import summarize
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.summary import summarize
 
     with BagSource(bag) as source:
         if CLOUD_TOPIC not in source.topics:

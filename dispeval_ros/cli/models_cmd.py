@@ -83,7 +83,7 @@ def read_table(
     """Methods, objectives and matrix of a scores CSV or of stored results."""
     from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
     from dispeval_ros.io.tables import is_frames_csv, read_objectives_csv
-    from dispeval_ros.offline.summary import objective_table
+    from dispeval_ros.summary import objective_table
 
     results = None
     if path.is_dir() or path.suffix == ".sqlite":

@@ -11,10 +11,10 @@ from dispeval_ros.cli import common
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES
+from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES
 
 if TYPE_CHECKING:
-    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.stream.core import CoreConfig
 
 
 def add_stream_options(
@@ -121,7 +121,7 @@ def _methods(specs: list[str], option: str = "--method") -> dict[str, str]:
 
 def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     """The evaluation core's configuration from the options (``what``: bags, live streams)."""
-    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.stream.core import CoreConfig
 
     if args.depth_ranges:
         raise ConfigurationError(

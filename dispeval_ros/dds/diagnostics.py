@@ -1,6 +1,6 @@
 """Transport-free records ↔ the ROS 2 messages the DDS front ends publish (rosbags objects).
 
-- :class:`~dispeval_ros.live.vectors.StatusRecord` lists ↔ ``diagnostic_msgs/msg/DiagnosticArray``
+- :class:`~dispeval_ros.stream.vectors.StatusRecord` lists ↔ ``diagnostic_msgs/msg/DiagnosticArray``
   (``header.stamp`` = the frame's ground-truth stamp, one ``DiagnosticStatus`` per record,
   ``values`` as ``KeyValue`` pairs);
 - score vectors → ``std_msgs/msg/Float64MultiArray`` with one dimension whose label is the
@@ -17,7 +17,7 @@ import numpy as np
 
 from dispeval_ros.dds.wire import DIAGNOSTIC_ARRAY, FLOAT64_MULTI_ARRAY
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.live.vectors import StatusRecord
+from dispeval_ros.stream.vectors import StatusRecord
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

@@ -1,16 +1,16 @@
 """The live evaluator on DDS: ROS 2 topics in, scores out, as the rclpy evaluator node does.
 
 Subscriptions (best-effort, keep-last: REP 2003 sensor data, so any publisher matches) feed
-:class:`~dispeval_ros.live.runner.LiveEvaluator` from one reader thread; every scored frame is
+:class:`~dispeval_ros.stream.runner.LiveEvaluator` from one reader thread; every scored frame is
 published
 
 - on ``/dispeval/scores`` as a ``diagnostic_msgs/msg/DiagnosticArray`` (``header.stamp`` = the
   ground-truth stamp; one ``DiagnosticStatus`` per method from
-  :func:`~dispeval_ros.live.vectors.scores_status`, with the exact sums a summarizer needs;
+  :func:`~dispeval_ros.stream.vectors.scores_status`, with the exact sums a summarizer needs;
   a frame's problems as ERROR statuses without values, named after the method or
   ``ground_truth``), reliable;
 - on ``/dispeval/<method>/vector`` as a ``std_msgs/msg/Float64MultiArray`` (the labelled
-  numbers of :func:`~dispeval_ros.live.vectors.score_vector`).
+  numbers of :func:`~dispeval_ros.stream.vectors.score_vector`).
 
 A ground-truth stamp that jumps back by more than ``tolerance + lateness`` (and at least 1 s)
 means the stream started again (a looping player, a robot restarted with sim time): the frames
@@ -40,9 +40,9 @@ from dispeval_ros.dds.wire import (
     vector_topic,
 )
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.live.core import CoreConfig, FrameResult, MethodCounts
-from dispeval_ros.live.runner import LiveEvaluator
-from dispeval_ros.live.vectors import (
+from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
+from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     StatusRecord,
     problem_status,

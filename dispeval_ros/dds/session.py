@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from dispeval_ros.dds.evaluator import DdsEvaluator
 from dispeval_ros.dds.summarizer import DdsSummarizer
 from dispeval_ros.dds.transport import DdsTransport
-from dispeval_ros.live.core import CoreConfig, MethodCounts
-from dispeval_ros.live.summarizer import SummarizerConfig
-from dispeval_ros.live.vectors import AlarmThresholds
-from dispeval_ros.offline.summary import RunSummary
+from dispeval_ros.stream.core import CoreConfig, MethodCounts
+from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.vectors import AlarmThresholds
+from dispeval_ros.summary import RunSummary
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Every ``DiagnosticArray`` on ``/dispeval/scores`` (reliable, keep-all subscription) is turned
 back into exact :class:`~dispeval_ros.core.Scores` (the statuses carry the raw sums) and given
-to :class:`~dispeval_ros.live.summarizer.SummarizerCore`, which writes the same results
+to :class:`~dispeval_ros.stream.summarizer.SummarizerCore`, which writes the same results
 database, ``frames.csv`` and ``summary.json`` as ``dispeval bag``. ERROR statuses without
 values are the evaluator's per-frame problems; they are stored as the database's problems.
 After every written unit the A* Groups go out on ``/dispeval/groups`` (reliable,
@@ -38,10 +38,10 @@ from dispeval_ros.dds.wire import (
 )
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import MatchCounts, Problem
-from dispeval_ros.live.core import MethodCounts
-from dispeval_ros.live.summarizer import SummarizerConfig, SummarizerCore, group_statuses
-from dispeval_ros.live.vectors import read_problem, scores_from_status
-from dispeval_ros.offline.summary import RunSummary
+from dispeval_ros.stream.core import MethodCounts
+from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
+from dispeval_ros.stream.vectors import read_problem, scores_from_status
+from dispeval_ros.summary import RunSummary
 
 COUNTS_UNIT = "live-counts"
 SUMMARY_SHARE = 0.1

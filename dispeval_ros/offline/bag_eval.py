@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.executors import Executor, make_executor
 from dispeval_ros.offline.units import (
     DEFAULT_SLICE_NS,
@@ -31,6 +30,7 @@ from dispeval_ros.offline.units import (
     open_bag,
     plan_bag,
 )
+from dispeval_ros.stream.core import CoreConfig
 
 __all__ = [
     "DEFAULT_SLICE_NS",

@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from dispeval_ros.errors import ConfigurationError, InputError
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.executors import Outcome
 from dispeval_ros.offline.units import Unit, UnitFailure, run_unit
+from dispeval_ros.stream.core import CoreConfig
 
 CONNECT_TIMEOUT_S = 10
 WORKER_TIMEOUT_S = 60

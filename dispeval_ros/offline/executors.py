@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Protocol
 
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.units import (
     Unit,
     UnitFailure,
@@ -31,6 +30,7 @@ from dispeval_ros.offline.units import (
     forget_bags,
     run_unit,
 )
+from dispeval_ros.stream.core import CoreConfig
 
 Outcome = tuple[int, UnitRows | UnitFailure]
 """A submitted unit's index and what came back."""

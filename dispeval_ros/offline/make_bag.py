@@ -30,7 +30,7 @@ from dispeval_ros.io.messages import (
     tf_static_to_msg,
 )
 from dispeval_ros.io.scenes import list_frames
-from dispeval_ros.live.core import CoreConfig
+from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
 from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, simulate_scan
 from dispeval_ros.testbed.scene import driving_setup, driving_world_at

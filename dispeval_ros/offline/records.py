@@ -8,8 +8,8 @@ from pathlib import Path
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.io.provenance import stream_digests
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import CoreConfig
 from dispeval_ros.offline.bag_eval import sequence_names
+from dispeval_ros.stream.core import CoreConfig
 
 
 def stream_topics(config: CoreConfig) -> list[str]:

@@ -24,8 +24,8 @@ from typing import Any
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
 from dispeval_ros.io.store import FrameScores, MatchCounts, PreparedUnit, Problem, prepare_unit
-from dispeval_ros.live.core import CoreConfig, EvaluationCore
-from dispeval_ros.live.join import FrameSet
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore
+from dispeval_ros.stream.join import FrameSet
 
 DEFAULT_SLICE_NS = 5_000_000_000
 AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)

@@ -16,7 +16,7 @@ compress well), deflated with zlib and base64-encoded; the browser inflates them
 
 It also holds the Python reference of the in-browser models: :func:`selection_objectives`
 builds the method × objective matrix of a :class:`Selection` from the database alone (through
-``ResultsStore`` queries), the way ``dispeval_ros.offline.summary`` does, and
+``ResultsStore`` queries), the way ``dispeval_ros.summary`` does, and
 :func:`evaluate_selection` runs :func:`dispeval_ros.core.models.evaluate_models` on it.
 """
 
@@ -48,7 +48,7 @@ from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
 
 if TYPE_CHECKING:
-    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.stream.core import CoreConfig
 
 FORMAT_VERSION = 1
 GRANULARITIES = ("sequence", "frame")
@@ -508,7 +508,7 @@ def build_report_data(
 
 def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from a run's stored configuration."""
-    from dispeval_ros.live.core import CoreConfig
+    from dispeval_ros.stream.core import CoreConfig
 
     methods = config.get("methods")
     gt_topic = config.get("gt_topic")
@@ -598,13 +598,13 @@ def error_thumbnails(
 
     The results database keeps no error maps, so the chosen frames (evenly spaced over each
     sequence's common frames) are read from the bag again, joined and scored by
-    :class:`~dispeval_ros.live.core.EvaluationCore` with ``error_images=True`` and rendered by
-    :func:`~dispeval_ros.live.images.colour_error` (turbo, 0–4 px, criterion borders white).
+    :class:`~dispeval_ros.stream.core.EvaluationCore` with ``error_images=True`` and rendered by
+    :func:`~dispeval_ros.stream.images.colour_error` (turbo, 0–4 px, criterion borders white).
     """
     from dispeval_ros.io.bags import BagSource
-    from dispeval_ros.live.core import EvaluationCore
-    from dispeval_ros.live.images import colour_error
     from dispeval_ros.offline.units import push_static_transforms
+    from dispeval_ros.stream.core import EvaluationCore
+    from dispeval_ros.stream.images import colour_error
 
     if count <= 0 or not bags:
         return None

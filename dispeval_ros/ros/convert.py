@@ -1,10 +1,10 @@
 """Score records and arrays as ROS messages (rclpy message classes), and back.
 
-- :class:`~dispeval_ros.live.vectors.StatusRecord` ↔ ``diagnostic_msgs/DiagnosticStatus``
+- :class:`~dispeval_ros.stream.vectors.StatusRecord` ↔ ``diagnostic_msgs/DiagnosticStatus``
   (``level`` is a ROS ``byte``: a length-1 ``bytes`` in rclpy, not an int).
 - A score vector → ``std_msgs/Float64MultiArray`` with one dimension labelled
   :data:`VECTOR_DIM_LABEL` whose size is the vector length. The label of each element
-  (``criterion/measure`` in :func:`~dispeval_ros.live.vectors.vector_labels` order) is published
+  (``criterion/measure`` in :func:`~dispeval_ros.stream.vectors.vector_labels` order) is published
   once, latched, as a JSON list in a ``std_msgs/String`` on ``/dispeval/NAME/vector_labels``.
 - numpy → ``sensor_msgs/Image`` (32FC1, rgb8 or any encoding of
   :data:`~dispeval_ros.io.messages.IMAGE_ENCODINGS`), little-endian and unpadded.
@@ -28,7 +28,7 @@ from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiAr
 
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.messages import IMAGE_ENCODINGS
-from dispeval_ros.live.vectors import StatusRecord
+from dispeval_ros.stream.vectors import StatusRecord
 
 VECTOR_DIM_LABEL = "criterion/measure"
 """Label of the single dimension of every score vector (its elements are criterion/measure)."""

@@ -1,13 +1,13 @@
 """The ``evaluator`` node (``dispeval_evaluator``): score stereo methods live, publish the scores.
 
-A thin adapter over :class:`~dispeval_ros.live.runner.LiveEvaluator`: subscription callbacks
+A thin adapter over :class:`~dispeval_ros.stream.runner.LiveEvaluator`: subscription callbacks
 only push messages (joining by header stamp, never scoring); the scoring thread publishes each
 frame's results:
 
 - ``/dispeval/scores`` (``diagnostic_msgs/DiagnosticArray``, stamp = the ground-truth frame's):
   one status per method (name = method, hardware_id = its topic, every ``criterion/measure``
   plus the exact sums, level from the alarms), an ERROR status per frame problem, and the
-  delivery record (:mod:`dispeval_ros.live.delivery`: this evaluator's id, the array's index
+  delivery record (:mod:`dispeval_ros.stream.delivery`: this evaluator's id, the array's index
   and its per-method counts) from which a summarizer stores the counts and counts what it
   lost; a last array with the final delivery record is sent at shutdown;
 - ``/dispeval/NAME/vector`` (``std_msgs/Float64MultiArray``) with its labels latched on
@@ -49,7 +49,14 @@ from stereo_msgs.msg import DisparityImage
 from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.live.core import (
+from dispeval_ros.ros import convert, static_tf
+from dispeval_ros.ros.params import (
+    EVALUATOR_PARAMETERS,
+    declare_parameters,
+    evaluator_options,
+    run_node,
+)
+from dispeval_ros.stream.core import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
     IMAGE_TYPE,
@@ -57,23 +64,16 @@ from dispeval_ros.live.core import (
     FrameResult,
     MethodCounts,
 )
-from dispeval_ros.live.delivery import delivery_record
-from dispeval_ros.live.images import colour_error
-from dispeval_ros.live.replay import replay
-from dispeval_ros.live.runner import LiveEvaluator
-from dispeval_ros.live.vectors import (
+from dispeval_ros.stream.delivery import delivery_record
+from dispeval_ros.stream.images import colour_error
+from dispeval_ros.stream.replay import replay
+from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     problem_status,
     score_vector,
     scores_status,
     vector_labels,
-)
-from dispeval_ros.ros import convert, static_tf
-from dispeval_ros.ros.params import (
-    EVALUATOR_PARAMETERS,
-    declare_parameters,
-    evaluator_options,
-    run_node,
 )
 
 NODE_NAME = "dispeval_evaluator"

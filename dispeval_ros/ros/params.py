@@ -2,8 +2,8 @@
 
 Each parameter is declared from one row of a table (name, default, description, constraints,
 numeric range, read-only), so descriptions, ``ros2 param describe`` and the config YAML files
-agree. The values read back are turned into :class:`~dispeval_ros.live.core.CoreConfig` /
-:class:`~dispeval_ros.live.summarizer.SummarizerConfig` here; every user mistake is a
+agree. The values read back are turned into :class:`~dispeval_ros.stream.core.CoreConfig` /
+:class:`~dispeval_ros.stream.summarizer.SummarizerConfig` here; every user mistake is a
 :class:`~dispeval_ros.errors.ConfigurationError` naming the parameter.
 
 rclpy is imported inside the functions that need it only, so the tables and conversions import
@@ -25,10 +25,10 @@ from pathlib import Path
 from typing import Any
 
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
-from dispeval_ros.live.core import GT_KINDS, CoreConfig
-from dispeval_ros.live.summarizer import SummarizerConfig
-from dispeval_ros.live.vectors import AlarmThresholds
-from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
+from dispeval_ros.stream.core import GT_KINDS, CoreConfig
+from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.vectors import AlarmThresholds
+from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"

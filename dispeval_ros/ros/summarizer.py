@@ -1,11 +1,11 @@
 """The ``summarizer`` node (``dispeval_summarizer``): store the scores, group the methods.
 
-A thin adapter over :class:`~dispeval_ros.live.summarizer.SummarizerCore`: every
+A thin adapter over :class:`~dispeval_ros.stream.summarizer.SummarizerCore`: every
 ``/dispeval/scores`` array is turned back into exact :class:`~dispeval_ros.core.Scores`
-(:func:`~dispeval_ros.live.vectors.scores_from_status`, from the raw sums) and added to the
+(:func:`~dispeval_ros.stream.vectors.scores_from_status`, from the raw sums) and added to the
 results database, the same one ``dispeval bag`` writes, with the evaluators' problems and
 counts (unmatched, dropped, failed) from their delivery records
-(:mod:`dispeval_ros.live.delivery`); scored frames that never arrived are counted as dropped,
+(:mod:`dispeval_ros.stream.delivery`); scored frames that never arrived are counted as dropped,
 with a problem saying so. After every ``summary_every`` frames the
 A* Groups are recomputed and published, latched, on ``/dispeval/groups``. ``~/new_sequence``
 (``std_srvs/Trigger``) closes the current sequence and starts the next one.
@@ -33,10 +33,6 @@ from std_srvs.srv import Trigger
 from dispeval_ros.core import Scores
 from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.live.delivery import DeliveryLedger, read_delivery
-from dispeval_ros.live.summarizer import SummarizerCore, group_statuses
-from dispeval_ros.live.vectors import read_problem, scores_from_status
-from dispeval_ros.offline.summary import RunSummary
 from dispeval_ros.ros import convert
 from dispeval_ros.ros.evaluator import SCORES_DEPTH, SCORES_TOPIC
 from dispeval_ros.ros.params import (
@@ -46,6 +42,10 @@ from dispeval_ros.ros.params import (
     run_node,
     summarizer_options,
 )
+from dispeval_ros.stream.delivery import DeliveryLedger, read_delivery
+from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
+from dispeval_ros.stream.vectors import read_problem, scores_from_status
+from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
 GROUPS_TOPIC = "/dispeval/groups"

@@ -46,7 +46,7 @@ from dispeval_ros.io.messages import (
     static_transforms_from_msg,
     stereo_grey,
 )
-from dispeval_ros.live.join import FrameSet, JoinCounts, StampJoiner
+from dispeval_ros.stream.join import FrameSet, JoinCounts, StampJoiner
 
 DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
 IMAGE_TYPE = "sensor_msgs/msg/Image"

@@ -3,7 +3,7 @@
 Transport callbacks call :meth:`LiveEvaluator.push`, which only joins by stamp (microseconds)
 and never blocks: joined frames wait in a bounded queue, and when scoring cannot keep up the
 oldest waiting frame is dropped and counted for every method in it. A worker thread scores
-and hands each :class:`~dispeval_ros.live.core.FrameResult` to the front end's callback.
+and hands each :class:`~dispeval_ros.stream.core.FrameResult` to the front end's callback.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from dispeval_ros.live.core import CoreConfig, EvaluationCore, FrameResult, MethodCounts
-from dispeval_ros.live.join import FrameSet
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult, MethodCounts
+from dispeval_ros.stream.join import FrameSet
 
 
 @dataclass

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import MatchCounts
-from dispeval_ros.live.core import MethodCounts
-from dispeval_ros.live.vectors import OK, StatusRecord
+from dispeval_ros.stream.core import MethodCounts
+from dispeval_ros.stream.vectors import OK, StatusRecord
 
 DELIVERY_STATUS = "dispeval:delivery"
 """Status name of the delivery record; no method can have it (method names are identifiers)."""

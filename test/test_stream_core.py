@@ -12,12 +12,13 @@ from sample_feed import bag_reference, expected_counts, robot_stream, sample_bag
 
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.live.core import FrameResult
-from dispeval_ros.live.images import colour_error
-from dispeval_ros.live.replay import replay
-from dispeval_ros.live.runner import LiveEvaluator
-from dispeval_ros.live.summarizer import SummarizerConfig, SummarizerCore, group_statuses
-from dispeval_ros.live.vectors import (
+from dispeval_ros.offline.make_bag import GT_TOPIC
+from dispeval_ros.stream.core import FrameResult
+from dispeval_ros.stream.images import colour_error
+from dispeval_ros.stream.replay import replay
+from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
+from dispeval_ros.stream.vectors import (
     ERROR,
     OK,
     WARN,
@@ -27,8 +28,7 @@ from dispeval_ros.live.vectors import (
     scores_status,
     vector_labels,
 )
-from dispeval_ros.offline.make_bag import GT_TOPIC
-from dispeval_ros.offline.summary import summarize
+from dispeval_ros.summary import summarize
 
 
 @pytest.fixture(scope="module")

@@ -20,8 +20,8 @@ from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
-from dispeval_ros.live.vectors import OK, StatusRecord, format_number
-from dispeval_ros.offline.summary import DEFAULT_OBJECTIVE_MEASURES, RunSummary, summarize
+from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
+from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, RunSummary, summarize
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ class RunningTotals:
     A summary from the database re-reads every frame, which grows with the run; this keeps
     the sums of the common frames up to date in O(1) per frame, so a live summary costs the
     same after an hour as after a minute. It answers the questions a summary asks (the
-    :class:`~dispeval_ros.offline.summary.ScoreSource` protocol) for per-sequence objectives.
+    :class:`~dispeval_ros.summary.ScoreSource` protocol) for per-sequence objectives.
     """
 
     def __init__(self) -> None:

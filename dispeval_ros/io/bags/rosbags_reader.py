@@ -1,0 +1,91 @@
+"""rosbag2 (sqlite3, MCAP) and ROS 1 bags, read with rosbags' ``AnyReader``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from dispeval_ros.errors import InputError
+from dispeval_ros.io.bags.common import (
+    MAX_TIME,
+    MessageTuple,
+    TopicInfo,
+    decode_failed,
+    one_line,
+    ros2_type,
+)
+
+if TYPE_CHECKING:
+
+    pass
+
+
+
+class RosbagsBackend:
+    """rosbag2 folders, raw ``.db3`` files and ROS 1 bags through rosbags' ``AnyReader``."""
+
+    def __init__(self, paths: list[Path], display: Path, ros1: bool) -> None:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = display
+        default = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        self._reader = AnyReader(paths, default_typestore=default)
+        self._reader.open()
+        reader = self._reader
+        try:
+            self.topics = {
+                name: TopicInfo(
+                    name,
+                    ros2_type(info.msgtype)
+                    if info.msgtype
+                    else " | ".join(sorted({ros2_type(c.msgtype) for c in info.connections})),
+                    int(info.msgcount),
+                )
+                for name, info in reader.topics.items()
+            }
+            self.message_count = int(reader.message_count)
+            start, end = int(reader.start_time), int(reader.end_time)
+        except BaseException:
+            reader.close()
+            raise
+        empty = self.message_count == 0 or start >= MAX_TIME
+        self.start_ns = 0 if empty else start
+        self.end_ns = 0 if empty else end
+
+    def messages(
+        self,
+        topics: Sequence[str],
+        start_ns: int | None,
+        stop_ns: int | None,
+        on_error: Callable[[InputError], None] | None,
+    ) -> Iterator[MessageTuple]:
+        reader = self._reader
+        connections = [c for c in reader.connections if c.topic in topics]
+        if not connections:
+            return
+        stream = reader.messages(connections, start=start_ns, stop=stop_ns)
+        last: int | None = None
+        while True:
+            try:
+                item = next(stream, None)
+            except Exception as exc:
+                where = "" if last is None else f" after log time {last} ns"
+                raise InputError(f"{self.path}: bag is damaged{where} ({one_line(exc)})") from None
+            if item is None:
+                return
+            connection, log_ns, raw = item
+            last = log_ns
+            try:
+                msg = reader.deserialize(raw, connection.msgtype)
+            except Exception as exc:
+                decode_failed(self.path, connection.topic, log_ns, exc, on_error)
+                continue
+            yield connection.topic, log_ns, msg
+
+    def close(self) -> None:
+        if self._reader.stack is not None:
+            self._reader.close()
+
+
