@@ -8,6 +8,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from types import FrameType
+from typing import NoReturn
 
 from dispeval_ros import __version__
 from dispeval_ros.cli import (
@@ -36,9 +37,17 @@ COMMANDS = (
 )
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage mistake is one line (naming --help) instead of the usage block."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full parser (one sub-command per module in :data:`COMMANDS`)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="dispeval",
         description="Judge stereo methods by their disparity maps: set-partition criteria "
         "(visibility, depth, ROI), SZE/BMPRE and classic measures, Pareto models (A* Groups).",
