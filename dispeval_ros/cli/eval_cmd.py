@@ -166,6 +166,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.protocol is not None:
         return protocol_eval.run(args)
+    if args.roi_labels and args.roi is None:
+        raise ConfigurationError("--roi-labels names the classes of --roi FILE: give --roi too")
     common.positive_option(args.gt_scale, "--gt-scale")
     common.positive_option(args.est_scale, "--est-scale")
     camera: Camera | None = None
