@@ -5,13 +5,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 from dispeval_ros.errors import InputError
-
-if TYPE_CHECKING:
-
-    pass
 
 
 #: Values of :attr:`BagSource.format`.
@@ -101,5 +97,3 @@ def decode_failed(
     if on_error is None:
         raise error from None
     on_error(error)
-
-

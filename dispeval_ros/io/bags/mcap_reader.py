@@ -10,7 +10,7 @@ import heapq
 import inspect
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO
+from typing import Any, BinaryIO
 
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags.common import (
@@ -21,11 +21,6 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
-
-if TYPE_CHECKING:
-
-    pass
-
 
 
 class _TruncatedError(EOFError):
@@ -300,5 +295,3 @@ class McapBackend:
 
 
 # -- opening --------------------------------------------------------------------------------
-
-

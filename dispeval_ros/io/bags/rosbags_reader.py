@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags.common import (
@@ -15,11 +14,6 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
-
-if TYPE_CHECKING:
-
-    pass
-
 
 
 class RosbagsBackend:
@@ -87,5 +81,3 @@ class RosbagsBackend:
     def close(self) -> None:
         if self._reader.stack is not None:
             self._reader.close()
-
-

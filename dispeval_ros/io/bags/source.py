@@ -27,8 +27,6 @@ if TYPE_CHECKING:
     from types import TracebackType
 
 
-
-
 def _magic(path: Path) -> bytes:
     try:
         with path.open("rb") as file:
@@ -234,5 +232,3 @@ def require_topic(source: BagSource, topic: str, msgtypes: Sequence[str]) -> Top
 
 
 # -- writing --------------------------------------------------------------------------------
-
-

@@ -15,7 +15,6 @@ if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 
-
 def _default_qos() -> list[Any]:
     """Reliable, volatile, keep-last-10: what ROS 2 image publishers offer by default."""
     from rosbags.interfaces import (
