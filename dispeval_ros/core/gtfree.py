@@ -63,22 +63,6 @@ def grey8(image: object, what: str) -> np.ndarray:
     return np.ascontiguousarray(array)
 
 
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
-def _row_zbuffer(
-    coded: np.ndarray, include_missing: bool, zbuffer: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """Largest disparity landing on each right-view column (rounded ``x − d``) of one row."""
-    width = coded.shape[0]
-    zbuffer[:] = -np.inf
-    for x in range(width):
-        raw = coded[x]
-        if raw > 0.0 or include_missing:
-            d = abs(raw)
-            target = int(np.floor(x - d + 0.5))
-            if 0 <= target < width and d > zbuffer[target]:
-                zbuffer[target] = d
-
-
 @njit(cache=True, nogil=True)
 def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
     """Runs of equal cells along each row: starts, cell of each run, first run of each row.
@@ -108,10 +92,30 @@ def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  
     return starts, run_cells, row_first
 
 
+@njit(cache=True, nogil=True)
+def neighbour_pairs(right: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``right[y, x] + 256 · right[y, x + 1]`` (the last column repeated) as int32.
+
+    Built once per frame: the interpolation then gathers both neighbours in one 32-bit load.
+    """
+    height, width = right.shape
+    pairs = np.empty((height, width), dtype=np.int32)
+    for y in range(height):
+        for x in range(width - 1):
+            pairs[y, x] = np.int32(right[y, x]) + 256 * np.int32(right[y, x + 1])
+        pairs[y, width - 1] = np.int32(right[y, width - 1]) * 257
+    return pairs
+
+
+SPARE_SLOTS = 8
+"""Z-buffer slots past the row that pixels landing nowhere write to, in turn: a run of holes
+does not chain its stores through one address."""
+
+
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
 def photometric_sums(
     left: np.ndarray,
-    right: np.ndarray,
+    right_pairs: np.ndarray,
     coded: np.ndarray,
     include_missing: bool,
     runs: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -124,127 +128,106 @@ def photometric_sums(
 
     ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
     (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
-    ``ignore``. ``runs`` comes from :func:`cell_runs`. ``right_coded`` is the right-view
-    estimate coded the same way, or 0×0 for none.
+    ``ignore``. ``right_pairs`` comes from :func:`neighbour_pairs`, ``runs`` from
+    :func:`cell_runs`. ``right_coded`` is the right-view estimate coded the same way, or 0×0
+    for none. ``tolerance`` ≥ 0.
 
-    Per row: the z-buffer, then every pixel's geometry (target column, interpolation weight,
-    whether it counts) in one pass without gathers, then per run of one cell the terms that
-    gather from the right image and the z-buffer: the passes vectorise, a fused loop did not.
+    Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry,
+    then one right-to-left pass that reads and writes the z-buffer at once (a pixel can only
+    be hidden by a pixel to its right, already written when ``tolerance`` ≥ 0) and gathers
+    the two interpolation neighbours in one load, then per run of one cell the sums of the
+    row's terms.
     """
     starts, run_cells, row_first = runs
     height, width = left.shape
     floor = -np.inf if include_missing else 0.0  # coded values above it take part
-    zbuffer = np.empty(width, dtype=np.float32)
-    geometry = _row_buffers(width)
+    last = np.float64(width - 1)
+    zbuffer = np.empty(width + SPARE_SLOTS, dtype=np.float32)
+    disparity = np.empty(width, dtype=np.float64)
+    weight = np.empty(width, dtype=np.float64)
+    column = np.empty(width, dtype=np.int64)
+    target = np.empty(width, dtype=np.int64)
+    slot = np.empty(width, dtype=np.int64)
+    counted = np.empty(width, dtype=np.bool_)
+    valid = np.empty(width, dtype=np.float64)
+    visible = np.empty(width, dtype=np.float64)
+    difference = np.empty(width, dtype=np.float64)
     check = right_coded.shape[0] == height
     for y in range(height):
-        _row_zbuffer(coded[y], include_missing, zbuffer)
-        _row_geometry(coded[y], floor, geometry)
+        row = coded[y]
+        for x in range(width):  # geometry: vectorises
+            raw = row[x]
+            d = np.float64(abs(raw))
+            source = x - d
+            clamped = min(max(source, 0.0), last)
+            x0 = min(int(clamped), width - 2)  # x0 + 1 inside: at x − d = W − 1 the weight is 1
+            landing = np.floor(source + 0.5)
+            lands = (raw > floor) & (landing >= 0.0) & (landing < width)
+            disparity[x] = d
+            column[x] = x0
+            weight[x] = clamped - x0
+            target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
+            slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
+            counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
+            valid[x] = 1.0 if raw > 0.0 else 0.0
+        zbuffer[:] = -np.inf
+        left_row = left[y]
+        pairs = right_pairs[y]
+        for x in range(width - 1, -1, -1):  # branch-free: holes and occlusions are unpredictable
+            d = disparity[x]
+            seen = counted[x] & ~(np.float64(zbuffer[target[x]]) > d + tolerance)
+            here = slot[x]
+            zbuffer[here] = max(zbuffer[here], np.float32(d))
+            pair = pairs[column[x]]
+            low = np.float64(pair & 255)
+            predicted = low + weight[x] * (np.float64(pair >> 8) - low)
+            visible[x] = 1.0 if seen else 0.0
+            difference[x] = abs(np.float64(left_row[x]) - predicted) if seen else 0.0
         for run in range(row_first[y], row_first[y + 1]):
             cell = run_cells[run]
             if cell < 0:
                 continue
             start = starts[run]
             stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
-            n_valid, n_vpe, sum_vpe = _run_vpe(
-                left[y], right[y], coded[y], zbuffer, geometry, start, stop, tolerance
-            )
+            n_valid = 0.0
+            n_vpe = 0.0
+            sum_vpe = 0.0
+            for x in range(start, stop):
+                n_valid += valid[x]
+                n_vpe += visible[x]
+                sum_vpe += difference[x]
             sums[cell, k.FIELD_N] += stop - start
             sums[cell, k.FIELD_VALID] += n_valid
             sums[cell, k.FIELD_N_VPE] += n_vpe
             sums[cell, k.FIELD_SUM_VPE] += sum_vpe
             if check:
-                n_lrc, n_bad = _run_lrc(right_coded[y], floor, geometry, start, stop, lrc_threshold)
+                n_lrc, n_bad = _run_lrc(row, right_coded[y], floor, start, stop, lrc_threshold)
                 sums[cell, k.FIELD_N_LRC] += n_lrc
                 sums[cell, k.FIELD_LRC] += n_bad
 
 
-@njit(cache=True, nogil=True)
-def _row_buffers(
-    width: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
-    """Row buffers: disparity, left interpolation column, its weight, rounded target, counted."""
-    return (
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
-        np.empty(width, dtype=np.bool_),
-    )
-
-
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
-def _row_geometry(
-    coded: np.ndarray,
-    floor: float,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-) -> None:  # pragma: no cover - compiled
-    """Where each pixel of one row lands in the right view (``x − d``), clamped to the row.
-
-    The interpolation column ``x0`` stops at ``W − 2`` so that ``x0 + 1`` is always inside
-    (``W ≥ 2``): at ``x − d = W − 1`` the weight is then 1, the same value.
-    """
-    disparity, column, weight, target, counted = geometry
-    last = coded.shape[0] - 1
-    for x in range(coded.shape[0]):
-        raw = coded[x]
-        d = np.float64(abs(raw))
-        source = x - d
-        clamped = min(max(source, 0.0), np.float64(last))
-        x0 = min(int(clamped), last - 1)  # images are at least 2 px wide
-        disparity[x] = d
-        column[x] = x0
-        weight[x] = clamped - x0
-        target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
-        counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
-
-
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
-def _run_vpe(
-    left: np.ndarray,
-    right: np.ndarray,
-    coded: np.ndarray,
-    zbuffer: np.ndarray,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    start: int,
-    stop: int,
-    tolerance: float,
-) -> tuple[float, float, float]:  # pragma: no cover - compiled
-    """Valid estimates, pixels in vpe and their Σ|I_L − I_R(x − d)| over ``[start, stop)``."""
-    disparity, column, weight, target, counted = geometry
-    n_valid = 0.0
-    n_vpe = 0.0
-    sum_vpe = 0.0
-    for x in range(start, stop):  # branch-free: holes and occlusions are not predictable
-        visible = counted[x] & ~(zbuffer[target[x]] > disparity[x] + tolerance)
-        x0 = column[x]
-        low = np.float64(right[x0])
-        predicted = low + weight[x] * (np.float64(right[x0 + 1]) - low)
-        difference = abs(np.float64(left[x]) - predicted)
-        n_valid += 1.0 if coded[x] > 0.0 else 0.0
-        n_vpe += 1.0 if visible else 0.0
-        sum_vpe += difference if visible else 0.0
-    return n_valid, n_vpe, sum_vpe
-
-
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
 def _run_lrc(
+    coded: np.ndarray,
     right_coded: np.ndarray,
     floor: float,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     start: int,
     stop: int,
     lrc_threshold: float,
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """Pixels left-right checked and the inconsistent ones among them over ``[start, stop)``."""
-    disparity, _, _, target, counted = geometry
+    last = np.float64(coded.shape[0] - 1)
     n_lrc = 0.0
     n_bad = 0.0
     for x in range(start, stop):
-        other = right_coded[target[x]]
-        checked = counted[x] & (other > floor)
+        raw = coded[x]
+        d = np.float64(abs(raw))
+        source = x - d
+        target = int(min(max(source, 0.0), last) + 0.5)
+        other = right_coded[target]
+        checked = (raw > floor) & (source >= 0.0) & (source <= last) & (other > floor)
         n_lrc += 1.0 if checked else 0.0
-        n_bad += 1.0 if checked & (abs(disparity[x] - abs(other)) > lrc_threshold) else 0.0
+        n_bad += 1.0 if checked & (abs(d - abs(other)) > lrc_threshold) else 0.0
     return n_lrc, n_bad
 
 
@@ -258,6 +241,8 @@ class ImagePair:
     left: np.ndarray
     right: np.ndarray
     partition: crit.Partition
+    right_pairs: np.ndarray
+    """Both interpolation neighbours of every right pixel (:func:`neighbour_pairs`)."""
     runs: tuple[np.ndarray, np.ndarray, np.ndarray]
     """Runs of equal cells along the rows (:func:`cell_runs`)."""
 
@@ -304,6 +289,10 @@ class GroundTruthFree:
         self.roi_names = dict(roi_names) if roi_names else None
         self.texture_window = int(texture_window)
         self.texture_threshold = float(texture_threshold)
+        if not occlusion_tolerance >= 0:
+            raise ConfigurationError(
+                f"the occlusion tolerance must be at least 0 px, got {occlusion_tolerance}"
+            )
         self.occlusion_tolerance = float(occlusion_tolerance)
         self.lrc_threshold = float(lrc_threshold)
         self.thresholds = thresholds_for(GT_FREE_SCORED, 1.0)
@@ -334,7 +323,9 @@ class GroundTruthFree:
             else:
                 sets.append(crit.roi_set(everywhere, np.asarray(roi), self.roi_names))
         partition = crit.build_partition(everywhere, sets)
-        return ImagePair(left8, right8, partition, cell_runs(partition.cells))
+        return ImagePair(
+            left8, right8, partition, neighbour_pairs(right8), cell_runs(partition.cells)
+        )
 
     def score(
         self,
@@ -356,7 +347,7 @@ class GroundTruthFree:
         sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         photometric_sums(
             pair.left,
-            pair.right,
+            pair.right_pairs,
             coded,
             self.missing != "ignore",
             pair.runs,
