@@ -143,11 +143,10 @@ def photometric_sums(
     floor = -np.inf if include_missing else 0.0  # coded values above it take part
     last = np.float64(width - 1)
     zbuffer = np.empty(width + SPARE_SLOTS, dtype=np.float32)
-    disparity = np.empty(width, dtype=np.float64)
     weight = np.empty(width, dtype=np.float64)
-    column = np.empty(width, dtype=np.int64)
-    target = np.empty(width, dtype=np.int64)
-    slot = np.empty(width, dtype=np.int64)
+    column = np.empty(width, dtype=np.uint32)  # unsigned: no negative-index wrap-around
+    target = np.empty(width, dtype=np.uint32)
+    slot = np.empty(width, dtype=np.uint32)
     counted = np.empty(width, dtype=np.bool_)
     valid = np.empty(width, dtype=np.float64)
     visible = np.empty(width, dtype=np.float64)
@@ -163,26 +162,26 @@ def photometric_sums(
             x0 = min(int(clamped), width - 2)  # x0 + 1 inside: at x − d = W − 1 the weight is 1
             landing = np.floor(source + 0.5)
             lands = (raw > floor) & (landing >= 0.0) & (landing < width)
-            disparity[x] = d
             column[x] = x0
             weight[x] = clamped - x0
             target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
             slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
             counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
             valid[x] = 1.0 if raw > 0.0 else 0.0
-        zbuffer[:] = -np.inf
-        left_row = left[y]
-        pairs = right_pairs[y]
-        for x in range(width - 1, -1, -1):  # branch-free: holes and occlusions are unpredictable
-            d = disparity[x]
-            seen = counted[x] & ~(np.float64(zbuffer[target[x]]) > d + tolerance)
-            here = slot[x]
-            zbuffer[here] = max(zbuffer[here], np.float32(d))
-            pair = pairs[column[x]]
-            low = np.float64(pair & 255)
-            predicted = low + weight[x] * (np.float64(pair >> 8) - low)
-            visible[x] = 1.0 if seen else 0.0
-            difference[x] = abs(np.float64(left_row[x]) - predicted) if seen else 0.0
+        _row_visible_terms(
+            left[y],
+            right_pairs[y],
+            row,
+            weight,
+            column,
+            target,
+            slot,
+            counted,
+            tolerance,
+            zbuffer,
+            visible,
+            difference,
+        )
         for run in range(row_first[y], row_first[y + 1]):
             cell = run_cells[run]
             if cell < 0:
@@ -204,6 +203,43 @@ def photometric_sums(
                 n_lrc, n_bad = _run_lrc(row, right_coded[y], floor, start, stop, lrc_threshold)
                 sums[cell, k.FIELD_N_LRC] += n_lrc
                 sums[cell, k.FIELD_LRC] += n_bad
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _row_visible_terms(
+    left: np.ndarray,
+    pairs: np.ndarray,
+    coded: np.ndarray,
+    weight: np.ndarray,
+    column: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
+    counted: np.ndarray,
+    tolerance: float,
+    zbuffer: np.ndarray,
+    visible: np.ndarray,
+    difference: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One row's z-buffer, visibility and ``|I_L − I_R(x − d)|``, right to left, branch-free.
+
+    A pixel can only be hidden by a pixel to its right (``tolerance`` ≥ 0), already in the
+    z-buffer when it is read. Holes and occlusions are not predictable: no branches; indices
+    are unsigned so that no negative-index wrap-around is computed.
+    """
+    width = coded.shape[0]
+    zbuffer[:] = -np.inf
+    for i in range(width):
+        x = np.uint64(width - 1 - i)
+        d = abs(coded[x])
+        seen = counted[x] & ~(np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance)
+        here = slot[x]
+        zbuffer[here] = max(zbuffer[here], d)
+        pair = pairs[column[x]]
+        low = np.float64(pair & 255)
+        predicted = low + weight[x] * (np.float64(pair >> 8) - low)
+        shown = 1.0 if seen else 0.0
+        visible[x] = shown
+        difference[x] = abs(np.float64(left[x]) - predicted) * shown  # exact: × 1 or × 0
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
