@@ -27,7 +27,7 @@ from numba import njit
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core import kernels as k
-from dispeval_ros.core.evaluator import POLICIES, as_disparity
+from dispeval_ros.core.evaluator import POLICIES, _same, as_disparity
 from dispeval_ros.core.measures import (
     FIELDS,
     GT_FREE_MEASURES,
@@ -132,11 +132,11 @@ def photometric_sums(
     :func:`cell_runs`. ``right_coded`` is the right-view estimate coded the same way, or 0×0
     for none. ``tolerance`` ≥ 0.
 
-    Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry,
-    then one right-to-left pass that reads and writes the z-buffer at once (a pixel can only
-    be hidden by a pixel to its right, already written when ``tolerance`` ≥ 0) and gathers
-    the two interpolation neighbours in one load, then per run of one cell the sums of the
-    row's terms.
+    Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry;
+    one right-to-left pass that reads and writes the z-buffer at once (:func:`_row_visible`);
+    a gather of both interpolation neighbours of each pixel in one 32-bit load; a vectorised
+    pass of the absolute differences; per run of one cell the sums of the row's terms. The
+    scalar passes are kept minimal: their loads and stores are the cost.
     """
     starts, run_cells, row_first = runs
     height, width = left.shape
@@ -148,9 +148,9 @@ def photometric_sums(
     target = np.empty(width, dtype=np.uint32)
     slot = np.empty(width, dtype=np.uint32)
     counted = np.empty(width, dtype=np.bool_)
-    valid = np.empty(width, dtype=np.float64)
     visible = np.empty(width, dtype=np.float64)
     difference = np.empty(width, dtype=np.float64)
+    neighbours = np.empty(width, dtype=np.int32)
     check = right_coded.shape[0] == height
     for y in range(height):
         row = coded[y]
@@ -167,21 +167,14 @@ def photometric_sums(
             target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
             slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
             counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
-            valid[x] = 1.0 if raw > 0.0 else 0.0
-        _row_visible_terms(
-            left[y],
-            right_pairs[y],
-            row,
-            weight,
-            column,
-            target,
-            slot,
-            counted,
-            tolerance,
-            zbuffer,
-            visible,
-            difference,
-        )
+        _row_visible(row, target, slot, counted, tolerance, zbuffer, visible)
+        _gather(right_pairs[y], column, neighbours)
+        left_row = left[y]
+        for x in range(width):  # interpolation and difference: vectorises
+            pair = neighbours[x]
+            low = np.float64(pair & 255)
+            predicted = low + weight[x] * (np.float64(pair >> 8) - low)
+            difference[x] = abs(np.float64(left_row[x]) - predicted) * visible[x]  # × 1 or × 0
         for run in range(row_first[y], row_first[y + 1]):
             cell = run_cells[run]
             if cell < 0:
@@ -192,7 +185,7 @@ def photometric_sums(
             n_vpe = 0.0
             sum_vpe = 0.0
             for x in range(start, stop):
-                n_valid += valid[x]
+                n_valid += 1.0 if row[x] > 0.0 else 0.0
                 n_vpe += visible[x]
                 sum_vpe += difference[x]
             sums[cell, k.FIELD_N] += stop - start
@@ -206,25 +199,21 @@ def photometric_sums(
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
-def _row_visible_terms(
-    left: np.ndarray,
-    pairs: np.ndarray,
+def _row_visible(
     coded: np.ndarray,
-    weight: np.ndarray,
-    column: np.ndarray,
     target: np.ndarray,
     slot: np.ndarray,
     counted: np.ndarray,
     tolerance: float,
     zbuffer: np.ndarray,
     visible: np.ndarray,
-    difference: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """One row's z-buffer, visibility and ``|I_L − I_R(x − d)|``, right to left, branch-free.
+    """One row's z-buffer and visibility (1 or 0 per pixel), right to left, branch-free.
 
     A pixel can only be hidden by a pixel to its right (``tolerance`` ≥ 0), already in the
-    z-buffer when it is read. Holes and occlusions are not predictable: no branches; indices
-    are unsigned so that no negative-index wrap-around is computed.
+    z-buffer when it is read, so one pass both reads and writes it. Holes and occlusions are
+    not predictable: no branches; indices are unsigned so that no negative-index wrap-around
+    is computed. A small kernel of its own: inlined, its pointers spill.
     """
     width = coded.shape[0]
     zbuffer[:] = -np.inf
@@ -234,12 +223,14 @@ def _row_visible_terms(
         seen = counted[x] & ~(np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance)
         here = slot[x]
         zbuffer[here] = max(zbuffer[here], d)
-        pair = pairs[column[x]]
-        low = np.float64(pair & 255)
-        predicted = low + weight[x] * (np.float64(pair >> 8) - low)
-        shown = 1.0 if seen else 0.0
-        visible[x] = shown
-        difference[x] = abs(np.float64(left[x]) - predicted) * shown  # exact: × 1 or × 0
+        visible[x] = 1.0 if seen else 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gather(values: np.ndarray, index: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """``out[x] = values[index[x]]``: gathers do not vectorise, the arithmetic after them does."""
+    for x in range(index.shape[0]):
+        out[x] = values[index[x]]
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
@@ -333,9 +324,22 @@ class GroundTruthFree:
         self.lrc_threshold = float(lrc_threshold)
         self.thresholds = thresholds_for(GT_FREE_SCORED, 1.0)
         self._local = threading.local()
+        self._criteria_cache: (
+            tuple[
+                np.ndarray,
+                np.ndarray | None,
+                crit.Partition,
+                tuple[np.ndarray, np.ndarray, np.ndarray],
+            ]
+            | None
+        ) = None
 
     def pair(self, left: object, right: object, roi: np.ndarray | None = None) -> ImagePair:
-        """Check the images and build the GT-free criteria from the left one (once per frame)."""
+        """Check the images and build the GT-free criteria from the left one (once per frame).
+
+        The criteria of the last left image (and ROI) are kept and compared by content: a
+        left image seen again (several estimates of one scene, a repeated frame) reuses them.
+        """
         left8 = grey8(left, "the left image")
         right8 = grey8(right, "the right image")
         if left8.shape[1] < 2:
@@ -345,6 +349,19 @@ class GroundTruthFree:
                 f"the right image is {right8.shape[1]}×{right8.shape[0]} but the left image is "
                 f"{left8.shape[1]}×{left8.shape[0]}"
             )
+        roi_array = None if roi is None else np.asarray(roi)
+        cached = self._criteria_cache
+        if cached is not None and _same(cached[0], left8) and _same(cached[1], roi_array):
+            partition, runs = cached[2], cached[3]
+        else:
+            partition = self._partition(left8, roi_array)
+            runs = cell_runs(partition.cells)
+            kept = None if roi_array is None else roi_array.copy()
+            self._criteria_cache = (left8.copy(), kept, partition, runs)
+        return ImagePair(left8, right8, partition, neighbour_pairs(right8), runs)
+
+    def _partition(self, left8: np.ndarray, roi: np.ndarray | None) -> crit.Partition:
+        """The GT-free criteria of one left image (and region of interest)."""
         everywhere = np.ones(left8.shape, bool)
         sets = []
         for name in self.criteria:
@@ -357,11 +374,8 @@ class GroundTruthFree:
                     "the 'roi' criterion set needs a region-of-interest mask or label image"
                 )
             else:
-                sets.append(crit.roi_set(everywhere, np.asarray(roi), self.roi_names))
-        partition = crit.build_partition(everywhere, sets)
-        return ImagePair(
-            left8, right8, partition, neighbour_pairs(right8), cell_runs(partition.cells)
-        )
+                sets.append(crit.roi_set(everywhere, roi, self.roi_names))
+        return crit.build_partition(everywhere, sets)
 
     def score(
         self,
