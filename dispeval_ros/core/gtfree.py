@@ -107,6 +107,10 @@ def neighbour_pairs(right: np.ndarray) -> np.ndarray:  # pragma: no cover - comp
     return pairs
 
 
+MASKED_CELLS = 4
+"""Up to this many cells, a row adds its terms by one vectorised masked pass per cell
+(``texture`` alternates every few pixels: per-run loops would be mostly overhead); more
+cells, or the left-right check, go run by run."""
 SPARE_SLOTS = 8
 """Z-buffer slots past the row that pixels landing nowhere write to, in turn: a run of holes
 does not chain its stores through one address."""
@@ -122,9 +126,10 @@ def photometric_sums(
     right_coded: np.ndarray,
     tolerance: float,
     lrc_threshold: float,
+    cells: np.ndarray,
     sums: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Add one estimate's GT-free terms per cell (cells < 0: not evaluated).
+    """Add one estimate's GT-free terms per cell (``cells`` < 0: not evaluated).
 
     ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
     (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
@@ -135,11 +140,13 @@ def photometric_sums(
     Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry;
     one right-to-left pass that reads and writes the z-buffer at once (:func:`_row_visible`);
     a gather of both interpolation neighbours of each pixel in one 32-bit load; a vectorised
-    pass of the absolute differences; per run of one cell the sums of the row's terms. The
-    scalar passes are kept minimal: their loads and stores are the cost.
+    pass of the absolute differences; the sums of the row's terms per cell (a masked pass per
+    cell when there are few, else per run of one cell). The scalar passes are kept minimal:
+    their loads and stores are the cost.
     """
     starts, run_cells, row_first = runs
     height, width = left.shape
+    n_cells = sums.shape[0]
     floor = -np.inf if include_missing else 0.0  # coded values above it take part
     last = np.float64(width - 1)
     zbuffer = np.empty(width + SPARE_SLOTS, dtype=np.float32)
@@ -175,6 +182,10 @@ def photometric_sums(
             low = np.float64(pair & 255)
             predicted = low + weight[x] * (np.float64(pair >> 8) - low)
             difference[x] = abs(np.float64(left_row[x]) - predicted) * visible[x]  # × 1 or × 0
+        if not check and n_cells <= MASKED_CELLS:
+            for cell in range(n_cells):  # few cells: a masked pass each beats per-run loops
+                _add_masked(sums[cell], cells[y], cell, row, visible, difference)
+            continue
         for run in range(row_first[y], row_first[y + 1]):
             cell = run_cells[run]
             if cell < 0:
@@ -196,6 +207,32 @@ def photometric_sums(
                 n_lrc, n_bad = _run_lrc(row, right_coded[y], floor, start, stop, lrc_threshold)
                 sums[cell, k.FIELD_N_LRC] += n_lrc
                 sums[cell, k.FIELD_LRC] += n_bad
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _add_masked(
+    sums: np.ndarray,
+    cells: np.ndarray,
+    cell: int,
+    coded: np.ndarray,
+    visible: np.ndarray,
+    difference: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add one row's terms of the pixels of one cell (a branch-free pass that vectorises)."""
+    n = 0.0
+    n_valid = 0.0
+    n_vpe = 0.0
+    sum_vpe = 0.0
+    for x in range(cells.shape[0]):
+        inside = 1.0 if cells[x] == cell else 0.0
+        n += inside
+        n_valid += inside if coded[x] > 0.0 else 0.0
+        n_vpe += inside * visible[x]
+        sum_vpe += inside * difference[x]
+    sums[k.FIELD_N] += n
+    sums[k.FIELD_VALID] += n_valid
+    sums[k.FIELD_N_VPE] += n_vpe
+    sums[k.FIELD_SUM_VPE] += sum_vpe
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
@@ -404,6 +441,7 @@ class GroundTruthFree:
             right_coded,
             self.occlusion_tolerance,
             self.lrc_threshold,
+            partition.cells,
             sums,
         )
         return Scores(
