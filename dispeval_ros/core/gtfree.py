@@ -113,7 +113,8 @@ MASKED_CELLS = 4
 cells, or the left-right check, go run by run."""
 SPARE_SLOTS = 8
 """Z-buffer slots past the row that pixels landing nowhere write to, in turn: a run of holes
-does not chain its stores through one address."""
+does not chain its stores through one address. One more slot after them holds +inf: pixels
+that do not count in vpe read it, so they are hidden without a test of their own."""
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
@@ -149,12 +150,12 @@ def photometric_sums(
     n_cells = sums.shape[0]
     floor = -np.inf if include_missing else 0.0  # coded values above it take part
     last = np.float64(width - 1)
-    zbuffer = np.empty(width + SPARE_SLOTS, dtype=np.float32)
+    zbuffer = np.empty(width + SPARE_SLOTS + 1, dtype=np.float32)
+    hidden = width + SPARE_SLOTS  # the +inf slot
     weight = np.empty(width, dtype=np.float64)
     column = np.empty(width, dtype=np.uint32)  # unsigned: no negative-index wrap-around
     target = np.empty(width, dtype=np.uint32)
     slot = np.empty(width, dtype=np.uint32)
-    counted = np.empty(width, dtype=np.bool_)
     visible = np.empty(width, dtype=np.float64)
     difference = np.empty(width, dtype=np.float64)
     neighbours = np.empty(width, dtype=np.int32)
@@ -171,10 +172,10 @@ def photometric_sums(
             lands = (raw > floor) & (landing >= 0.0) & (landing < width)
             column[x] = x0
             weight[x] = clamped - x0
-            target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
+            counted = (raw > floor) & (source >= 0.0) & (source <= last)
+            target[x] = int(clamped + 0.5) if counted else hidden  # clamped ≥ 0: floor
             slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
-            counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
-        _row_visible(row, target, slot, counted, tolerance, zbuffer, visible)
+        _row_visible(row, target, slot, tolerance, zbuffer, visible)
         _gather(right_pairs[y], column, neighbours)
         left_row = left[y]
         for x in range(width):  # interpolation and difference: vectorises
@@ -240,7 +241,6 @@ def _row_visible(
     coded: np.ndarray,
     target: np.ndarray,
     slot: np.ndarray,
-    counted: np.ndarray,
     tolerance: float,
     zbuffer: np.ndarray,
     visible: np.ndarray,
@@ -253,11 +253,12 @@ def _row_visible(
     is computed. A small kernel of its own: inlined, its pointers spill.
     """
     width = coded.shape[0]
-    zbuffer[:] = -np.inf
+    zbuffer[:-1] = -np.inf
+    zbuffer[-1] = np.inf  # what pixels that do not count read (``target``): never visible
     for i in range(width):
         x = np.uint64(width - 1 - i)
         d = abs(coded[x])
-        seen = counted[x] & ~(np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance)
+        seen = not np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance
         here = slot[x]
         zbuffer[here] = max(zbuffer[here], d)
         visible[x] = 1.0 if seen else 0.0
