@@ -833,13 +833,15 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
         # through the controls: add the gtfree: criteria and vpe to the default selection
         default = default_selection(store)
         assert default.criteria == ("all", "interior")
-        for criterion in ("gtfree:all", "gtfree:textured"):
-            page.locator(
-                f'input[data-kind="criterion"][data-index="{store.criteria().index(criterion)}"]'
-            ).click()
-        page.locator(
-            f'input[data-kind="measure"][data-index="{store.measures().index("vpe")}"]'
-        ).click()
+
+        def toggle(criteria: tuple[str, ...], measure: str) -> None:
+            for name in criteria:
+                index = store.criteria().index(name)
+                page.locator(f'input[data-kind="criterion"][data-index="{index}"]').click()
+            index = store.measures().index(measure)
+            page.locator(f'input[data-kind="measure"][data-index="{index}"]').click()
+
+        toggle(("gtfree:all", "gtfree:textured"), "vpe")
         chosen = Selection(("drive",), GT_AND_FREE, (*default.measures, "vpe"), default.methods)
         check_display(displayed(page), store, chosen, "astar")
         warnings = page.text_content("#warnings") or ""
@@ -848,13 +850,7 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
             assert pair in warnings
         assert "NaN" not in (page.text_content("#objective-names") or "")
         # only GT measures on only gtfree: criteria: no objective, and the page says why
-        for criterion in ("all", "interior"):
-            page.locator(
-                f'input[data-kind="criterion"][data-index="{store.criteria().index(criterion)}"]'
-            ).click()
-        page.locator(
-            f'input[data-kind="measure"][data-index="{store.measures().index("vpe")}"]'
-        ).click()
+        toggle(("all", "interior"), "vpe")
         status = page.text_content("#status") or ""
         assert "none of the selected measures applies to the selected criteria" in status
         assert not errors, errors
