@@ -849,6 +849,8 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
         for pair in skipped_pairs(chosen):
             assert pair in warnings
         assert "NaN" not in (page.text_content("#objective-names") or "")
+        # the totals of the plotted measure (bmp) only on the criteria it applies to
+        assert page.evaluate("document.getElementById('bars').children.length") == 2
         # only GT measures on only gtfree: criteria: no objective, and the page says why
         toggle(("all", "interior"), "vpe")
         status = page.text_content("#status") or ""

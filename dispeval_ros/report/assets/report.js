@@ -1258,6 +1258,7 @@
       'bar colour = A* group.') +
       (recipe.kind === 'stored' ? ' Quantiles are not summable: undefined.' : '');
     for (const c of built.criteria) {
+      if (!applies(c, state.plotMeasure)) continue;  // e.g. bmp on gtfree: criteria: undefined
       const values = built.methodIdx.map(function (_, i) {
         let totals = null;
         for (const s of seqs) {
