@@ -403,3 +403,35 @@ def test_gt_free_criteria_are_checked(
     argv = ["eval", *images, "--est", str(pair_files["true"]), "--gt-free-criteria", "visibility"]
     assert main(argv) == 2
     assert "criterion set 'visibility'" in capsys.readouterr().err
+
+
+def test_criteria_of_the_same_left_image_are_reused_by_content() -> None:
+    """A left image seen again reuses its criteria; another image, or the caller changing its
+    array in place afterwards, builds them again (the numbers stay the loops')."""
+    left, right, disparity = synthetic_pair(30, 60)
+    other = np.ascontiguousarray(left[:, ::-1])
+    free = GroundTruthFree(("all", "texture"), "interpolate")
+    first = free.pair(left, right)
+    assert free.pair(left.copy(), right).partition is first.partition
+    assert free.pair(other, right).partition is not first.partition
+    again = free.pair(left, right)
+    assert again.partition is not first.partition
+    assert np.array_equal(again.partition.cells, first.partition.cells)
+    buffer = left.copy()
+    reused = free.pair(buffer, right)
+    buffer[:, :30] = 100  # the caller reuses its image buffer for the next frame
+    changed = free.pair(buffer, right)
+    assert changed.partition is not reused.partition
+    region = texture_set(buffer).labels == 1
+    assert free.score(changed, disparity)["gtfree:textureless"]["vpe"] == pytest.approx(
+        loop_measures(buffer, right, disparity, "interpolate", region=region)["vpe"], rel=1e-9
+    )
+
+
+def test_occlusion_tolerance_must_not_be_negative() -> None:
+    from dispeval_ros.errors import ConfigurationError
+
+    with pytest.raises(ConfigurationError, match="occlusion tolerance must be at least 0 px"):
+        GroundTruthFree(occlusion_tolerance=-0.5)
+    with pytest.raises(ConfigurationError, match="occlusion tolerance"):
+        GroundTruthFree(occlusion_tolerance=math.nan)

@@ -33,6 +33,7 @@ import numpy as np
 import pytest
 
 from dispeval_ros.core import Scores, evaluate_models
+from dispeval_ros.core import kernels as k
 from dispeval_ros.core.measures import SEQUENCE_MEASURES, SUM_FIELDS, thresholds_for
 from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
 from dispeval_ros.report import data as report_data
@@ -44,6 +45,7 @@ from dispeval_ros.report.data import (
     evaluate_selection,
     measure_recipe,
     recipe_values,
+    skipped_pairs,
 )
 from dispeval_ros.report.html import write_report
 from dispeval_ros.summary import summarize
@@ -176,6 +178,35 @@ def make_large_store(directory: Path, frames: int = 1000, methods: int = 100) ->
                     )
                     rows.append(FrameScores("long-drive", stamp, name, scores))
             store.add_unit("long-drive", f"{unit:06d}", rows)
+    return directory
+
+
+GT_AND_FREE = ("all", "interior", "gtfree:all", "gtfree:textured")
+GT_AND_FREE_MEASURES = ("bmp", "mae", "vpe", "density")
+
+
+def make_gt_and_free_store(directory: Path) -> Path:
+    """One sequence, four methods, GT criteria beside ``gtfree:`` ones (vpe sums on those)."""
+    rng = np.random.default_rng(11)
+    thresholds = thresholds_for(GT_AND_FREE_MEASURES, 1.0)
+    methods = ("sgbm", "bm", "elas", "ref")
+    with ResultsStore.create(directory, {"methods": list(methods)}) as store:
+        sums = synthetic_sums(rng, (8, len(GT_AND_FREE), len(methods)))
+        free = sums[:, 2:]  # no ground truth there: no evaluated point, vpe terms instead
+        free[..., 2:] = 0.0
+        free[..., k.FIELD_N_VPE] = np.floor(free[..., k.FIELD_VALID] * 0.9)
+        free[..., k.FIELD_SUM_VPE] = free[..., k.FIELD_N_VPE] * rng.uniform(3, 12, free.shape[:-1])
+        rows = [
+            FrameScores(
+                "drive",
+                1_700_000_000_000_000_000 + f * 100_000_000,
+                method,
+                Scores(GT_AND_FREE, GT_AND_FREE_MEASURES, sums[f, :, m].copy(), thresholds),
+            )
+            for f in range(sums.shape[0])
+            for m, method in enumerate(methods)
+        ]
+        store.add_unit("drive", "0", rows)
     return directory
 
 
@@ -762,6 +793,70 @@ def test_browser_controls_recompute_the_models(
         print(f"\n[report] screenshot: {shot}")
     assert not errors, errors
     page.close()
+
+
+def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: Path) -> None:
+    """GT measures on gtfree: criteria (and vpe on GT criteria) give no objective, never NaN
+    ones, in the page as in Python, and the page says which pairs it skipped."""
+    results = make_gt_and_free_store(tmp_path / "free")
+    with ResultsStore.open(results) as store:
+        write_report(build_report_data(store), tmp_path / "report.html")
+        page, errors = open_report(browser, tmp_path / "report.html")
+        mixed = Selection(
+            ("drive",), GT_AND_FREE, ("bmp", "vpe", "density"), tuple(store.methods())
+        )
+        for granularity in ("sequence", "frame"):
+            selection = Selection(**{**vars(mixed), "granularity": granularity})
+            js = json.loads(
+                page.evaluate("s => window.dispevalModelsJSON(s, true)", selection.to_dict())
+            )
+            py = python_models(store, selection)
+            assert not same_result(js, py), same_result(js, py)
+            assert py["models"] is not None
+            assert not np.isnan(py["matrix"]).any()
+            assert (
+                js["skipped"]
+                == skipped_pairs(selection)
+                == ["all/vpe", "interior/vpe", "gtfree:all/bmp", "gtfree:textured/bmp"]
+            )
+            labels = {name.split(" @")[0] for name in py["objectives"]}
+            assert labels == {
+                "all/bmp",
+                "all/density",
+                "interior/bmp",
+                "interior/density",
+                "gtfree:all/vpe",
+                "gtfree:all/density",
+                "gtfree:textured/vpe",
+                "gtfree:textured/density",
+            }
+        # through the controls: add the gtfree: criteria and vpe to the default selection
+        default = default_selection(store)
+        assert default.criteria == ("all", "interior")
+
+        def toggle(criteria: tuple[str, ...], measure: str) -> None:
+            for name in criteria:
+                index = store.criteria().index(name)
+                page.locator(f'input[data-kind="criterion"][data-index="{index}"]').click()
+            index = store.measures().index(measure)
+            page.locator(f'input[data-kind="measure"][data-index="{index}"]').click()
+
+        toggle(("gtfree:all", "gtfree:textured"), "vpe")
+        chosen = Selection(("drive",), GT_AND_FREE, (*default.measures, "vpe"), default.methods)
+        check_display(displayed(page), store, chosen, "astar")
+        warnings = page.text_content("#warnings") or ""
+        assert "Skipped 4 criterion/measure pairs that do not apply" in warnings
+        for pair in skipped_pairs(chosen):
+            assert pair in warnings
+        assert "NaN" not in (page.text_content("#objective-names") or "")
+        # the totals of the plotted measure (bmp) only on the criteria it applies to
+        assert page.evaluate("document.getElementById('bars').children.length") == 2
+        # only GT measures on only gtfree: criteria: no objective, and the page says why
+        toggle(("all", "interior"), "vpe")
+        status = page.text_content("#status") or ""
+        assert "none of the selected measures applies to the selected criteria" in status
+        assert not errors, errors
+        page.close()
 
 
 def test_browser_shows_the_demo_report(

@@ -27,7 +27,7 @@ from numba import njit
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core import kernels as k
-from dispeval_ros.core.evaluator import POLICIES, as_disparity
+from dispeval_ros.core.evaluator import POLICIES, _same, as_disparity
 from dispeval_ros.core.measures import (
     FIELDS,
     GT_FREE_MEASURES,
@@ -63,22 +63,6 @@ def grey8(image: object, what: str) -> np.ndarray:
     return np.ascontiguousarray(array)
 
 
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
-def _row_zbuffer(
-    coded: np.ndarray, include_missing: bool, zbuffer: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """Largest disparity landing on each right-view column (rounded ``x − d``) of one row."""
-    width = coded.shape[0]
-    zbuffer[:] = -np.inf
-    for x in range(width):
-        raw = coded[x]
-        if raw > 0.0 or include_missing:
-            d = abs(raw)
-            target = int(np.floor(x - d + 0.5))
-            if 0 <= target < width and d > zbuffer[target]:
-                zbuffer[target] = d
-
-
 @njit(cache=True, nogil=True)
 def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
     """Runs of equal cells along each row: starts, cell of each run, first run of each row.
@@ -108,143 +92,207 @@ def cell_runs(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  
     return starts, run_cells, row_first
 
 
+@njit(cache=True, nogil=True)
+def neighbour_pairs(right: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``right[y, x] + 256 · right[y, x + 1]`` (the last column repeated) as int32.
+
+    Built once per frame: the interpolation then gathers both neighbours in one 32-bit load.
+    """
+    height, width = right.shape
+    pairs = np.empty((height, width), dtype=np.int32)
+    for y in range(height):
+        for x in range(width - 1):
+            pairs[y, x] = np.int32(right[y, x]) + 256 * np.int32(right[y, x + 1])
+        pairs[y, width - 1] = np.int32(right[y, width - 1]) * 257
+    return pairs
+
+
+MASKED_CELLS = 4
+"""Up to this many cells, a row adds its terms by one vectorised masked pass per cell
+(``texture`` alternates every few pixels: per-run loops would be mostly overhead); more
+cells, or the left-right check, go run by run."""
+SPARE_SLOTS = 8
+"""Z-buffer slots past the row that pixels landing nowhere write to, in turn: a run of holes
+does not chain its stores through one address. One more slot after them holds +inf: pixels
+that do not count in vpe read it, so they are hidden without a test of their own."""
+
+
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
 def photometric_sums(
     left: np.ndarray,
-    right: np.ndarray,
+    right_pairs: np.ndarray,
     coded: np.ndarray,
     include_missing: bool,
     runs: tuple[np.ndarray, np.ndarray, np.ndarray],
     right_coded: np.ndarray,
     tolerance: float,
     lrc_threshold: float,
+    cells: np.ndarray,
     sums: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Add one estimate's GT-free terms per cell (cells < 0: not evaluated).
+    """Add one estimate's GT-free terms per cell (``cells`` < 0: not evaluated).
 
     ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
     (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
-    ``ignore``. ``runs`` comes from :func:`cell_runs`. ``right_coded`` is the right-view
-    estimate coded the same way, or 0×0 for none.
+    ``ignore``. ``right_pairs`` comes from :func:`neighbour_pairs`, ``runs`` from
+    :func:`cell_runs`. ``right_coded`` is the right-view estimate coded the same way, or 0×0
+    for none. ``tolerance`` ≥ 0.
 
-    Per row: the z-buffer, then every pixel's geometry (target column, interpolation weight,
-    whether it counts) in one pass without gathers, then per run of one cell the terms that
-    gather from the right image and the z-buffer: the passes vectorise, a fused loop did not.
+    Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry;
+    one right-to-left pass that reads and writes the z-buffer at once (:func:`_row_visible`);
+    a gather of both interpolation neighbours of each pixel in one 32-bit load; a vectorised
+    pass of the absolute differences; the sums of the row's terms per cell (a masked pass per
+    cell when there are few, else per run of one cell). The scalar passes are kept minimal:
+    their loads and stores are the cost.
     """
     starts, run_cells, row_first = runs
     height, width = left.shape
+    n_cells = sums.shape[0]
     floor = -np.inf if include_missing else 0.0  # coded values above it take part
-    zbuffer = np.empty(width, dtype=np.float32)
-    geometry = _row_buffers(width)
+    last = np.float64(width - 1)
+    zbuffer = np.empty(width + SPARE_SLOTS + 1, dtype=np.float32)
+    hidden = width + SPARE_SLOTS  # the +inf slot
+    weight = np.empty(width, dtype=np.float64)
+    column = np.empty(width, dtype=np.uint32)  # unsigned: no negative-index wrap-around
+    target = np.empty(width, dtype=np.uint32)
+    slot = np.empty(width, dtype=np.uint32)
+    visible = np.empty(width, dtype=np.float64)
+    difference = np.empty(width, dtype=np.float64)
+    neighbours = np.empty(width, dtype=np.int32)
     check = right_coded.shape[0] == height
     for y in range(height):
-        _row_zbuffer(coded[y], include_missing, zbuffer)
-        _row_geometry(coded[y], floor, geometry)
+        row = coded[y]
+        for x in range(width):  # geometry: vectorises
+            raw = row[x]
+            d = np.float64(abs(raw))
+            source = x - d
+            clamped = min(max(source, 0.0), last)
+            x0 = min(int(clamped), width - 2)  # x0 + 1 inside: at x − d = W − 1 the weight is 1
+            landing = np.floor(source + 0.5)
+            lands = (raw > floor) & (landing >= 0.0) & (landing < width)
+            column[x] = x0
+            weight[x] = clamped - x0
+            counted = (raw > floor) & (source >= 0.0) & (source <= last)
+            target[x] = int(clamped + 0.5) if counted else hidden  # clamped ≥ 0: floor
+            slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
+        _row_visible(row, target, slot, tolerance, zbuffer, visible)
+        _gather(right_pairs[y], column, neighbours)
+        left_row = left[y]
+        for x in range(width):  # interpolation and difference: vectorises
+            pair = neighbours[x]
+            low = np.float64(pair & 255)
+            predicted = low + weight[x] * (np.float64(pair >> 8) - low)
+            difference[x] = abs(np.float64(left_row[x]) - predicted) * visible[x]  # × 1 or × 0
+        if not check and n_cells <= MASKED_CELLS:
+            for cell in range(n_cells):  # few cells: a masked pass each beats per-run loops
+                _add_masked(sums[cell], cells[y], cell, row, visible, difference)
+            continue
         for run in range(row_first[y], row_first[y + 1]):
             cell = run_cells[run]
             if cell < 0:
                 continue
             start = starts[run]
             stop = starts[run + 1] if run + 1 < row_first[y + 1] else width
-            n_valid, n_vpe, sum_vpe = _run_vpe(
-                left[y], right[y], coded[y], zbuffer, geometry, start, stop, tolerance
-            )
+            n_valid = 0.0
+            n_vpe = 0.0
+            sum_vpe = 0.0
+            for x in range(start, stop):
+                n_valid += 1.0 if row[x] > 0.0 else 0.0
+                n_vpe += visible[x]
+                sum_vpe += difference[x]
             sums[cell, k.FIELD_N] += stop - start
             sums[cell, k.FIELD_VALID] += n_valid
             sums[cell, k.FIELD_N_VPE] += n_vpe
             sums[cell, k.FIELD_SUM_VPE] += sum_vpe
             if check:
-                n_lrc, n_bad = _run_lrc(right_coded[y], floor, geometry, start, stop, lrc_threshold)
+                n_lrc, n_bad = _run_lrc(row, right_coded[y], floor, start, stop, lrc_threshold)
                 sums[cell, k.FIELD_N_LRC] += n_lrc
                 sums[cell, k.FIELD_LRC] += n_bad
 
 
-@njit(cache=True, nogil=True)
-def _row_buffers(
-    width: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
-    """Row buffers: disparity, left interpolation column, its weight, rounded target, counted."""
-    return (
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
-        np.empty(width, dtype=np.bool_),
-    )
-
-
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
-def _row_geometry(
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _add_masked(
+    sums: np.ndarray,
+    cells: np.ndarray,
+    cell: int,
     coded: np.ndarray,
-    floor: float,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    visible: np.ndarray,
+    difference: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Where each pixel of one row lands in the right view (``x − d``), clamped to the row.
-
-    The interpolation column ``x0`` stops at ``W − 2`` so that ``x0 + 1`` is always inside
-    (``W ≥ 2``): at ``x − d = W − 1`` the weight is then 1, the same value.
-    """
-    disparity, column, weight, target, counted = geometry
-    last = coded.shape[0] - 1
-    for x in range(coded.shape[0]):
-        raw = coded[x]
-        d = np.float64(abs(raw))
-        source = x - d
-        clamped = min(max(source, 0.0), np.float64(last))
-        x0 = min(int(clamped), last - 1)  # images are at least 2 px wide
-        disparity[x] = d
-        column[x] = x0
-        weight[x] = clamped - x0
-        target[x] = int(clamped + 0.5)  # clamped ≥ 0: truncation is the floor
-        counted[x] = (raw > floor) & (source >= 0.0) & (source <= last)
-
-
-@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy", inline="always")
-def _run_vpe(
-    left: np.ndarray,
-    right: np.ndarray,
-    coded: np.ndarray,
-    zbuffer: np.ndarray,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    start: int,
-    stop: int,
-    tolerance: float,
-) -> tuple[float, float, float]:  # pragma: no cover - compiled
-    """Valid estimates, pixels in vpe and their Σ|I_L − I_R(x − d)| over ``[start, stop)``."""
-    disparity, column, weight, target, counted = geometry
+    """Add one row's terms of the pixels of one cell (a branch-free pass that vectorises)."""
+    n = 0.0
     n_valid = 0.0
     n_vpe = 0.0
     sum_vpe = 0.0
-    for x in range(start, stop):  # branch-free: holes and occlusions are not predictable
-        visible = counted[x] & ~(zbuffer[target[x]] > disparity[x] + tolerance)
-        x0 = column[x]
-        low = np.float64(right[x0])
-        predicted = low + weight[x] * (np.float64(right[x0 + 1]) - low)
-        difference = abs(np.float64(left[x]) - predicted)
-        n_valid += 1.0 if coded[x] > 0.0 else 0.0
-        n_vpe += 1.0 if visible else 0.0
-        sum_vpe += difference if visible else 0.0
-    return n_valid, n_vpe, sum_vpe
+    for x in range(cells.shape[0]):
+        inside = 1.0 if cells[x] == cell else 0.0
+        n += inside
+        n_valid += inside if coded[x] > 0.0 else 0.0
+        n_vpe += inside * visible[x]
+        sum_vpe += inside * difference[x]
+    sums[k.FIELD_N] += n
+    sums[k.FIELD_VALID] += n_valid
+    sums[k.FIELD_N_VPE] += n_vpe
+    sums[k.FIELD_SUM_VPE] += sum_vpe
+
+
+@njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
+def _row_visible(
+    coded: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
+    tolerance: float,
+    zbuffer: np.ndarray,
+    visible: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One row's z-buffer and visibility (1 or 0 per pixel), right to left, branch-free.
+
+    A pixel can only be hidden by a pixel to its right (``tolerance`` ≥ 0), already in the
+    z-buffer when it is read, so one pass both reads and writes it. Holes and occlusions are
+    not predictable: no branches; indices are unsigned so that no negative-index wrap-around
+    is computed. A small kernel of its own: inlined, its pointers spill.
+    """
+    width = coded.shape[0]
+    zbuffer[:-1] = -np.inf
+    zbuffer[-1] = np.inf  # what pixels that do not count read (``target``): never visible
+    for i in range(width):
+        x = np.uint64(width - 1 - i)
+        d = abs(coded[x])
+        seen = not np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance
+        here = slot[x]
+        zbuffer[here] = max(zbuffer[here], d)
+        visible[x] = 1.0 if seen else 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gather(values: np.ndarray, index: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """``out[x] = values[index[x]]``: gathers do not vectorise, the arithmetic after them does."""
+    for x in range(index.shape[0]):
+        out[x] = values[index[x]]
 
 
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
 def _run_lrc(
+    coded: np.ndarray,
     right_coded: np.ndarray,
     floor: float,
-    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     start: int,
     stop: int,
     lrc_threshold: float,
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """Pixels left-right checked and the inconsistent ones among them over ``[start, stop)``."""
-    disparity, _, _, target, counted = geometry
+    last = np.float64(coded.shape[0] - 1)
     n_lrc = 0.0
     n_bad = 0.0
     for x in range(start, stop):
-        other = right_coded[target[x]]
-        checked = counted[x] & (other > floor)
+        raw = coded[x]
+        d = np.float64(abs(raw))
+        source = x - d
+        target = int(min(max(source, 0.0), last) + 0.5)
+        other = right_coded[target]
+        checked = (raw > floor) & (source >= 0.0) & (source <= last) & (other > floor)
         n_lrc += 1.0 if checked else 0.0
-        n_bad += 1.0 if checked & (abs(disparity[x] - abs(other)) > lrc_threshold) else 0.0
+        n_bad += 1.0 if checked & (abs(d - abs(other)) > lrc_threshold) else 0.0
     return n_lrc, n_bad
 
 
@@ -258,6 +306,8 @@ class ImagePair:
     left: np.ndarray
     right: np.ndarray
     partition: crit.Partition
+    right_pairs: np.ndarray
+    """Both interpolation neighbours of every right pixel (:func:`neighbour_pairs`)."""
     runs: tuple[np.ndarray, np.ndarray, np.ndarray]
     """Runs of equal cells along the rows (:func:`cell_runs`)."""
 
@@ -304,13 +354,30 @@ class GroundTruthFree:
         self.roi_names = dict(roi_names) if roi_names else None
         self.texture_window = int(texture_window)
         self.texture_threshold = float(texture_threshold)
+        if not occlusion_tolerance >= 0:
+            raise ConfigurationError(
+                f"the occlusion tolerance must be at least 0 px, got {occlusion_tolerance}"
+            )
         self.occlusion_tolerance = float(occlusion_tolerance)
         self.lrc_threshold = float(lrc_threshold)
         self.thresholds = thresholds_for(GT_FREE_SCORED, 1.0)
         self._local = threading.local()
+        self._criteria_cache: (
+            tuple[
+                np.ndarray,
+                np.ndarray | None,
+                crit.Partition,
+                tuple[np.ndarray, np.ndarray, np.ndarray],
+            ]
+            | None
+        ) = None
 
     def pair(self, left: object, right: object, roi: np.ndarray | None = None) -> ImagePair:
-        """Check the images and build the GT-free criteria from the left one (once per frame)."""
+        """Check the images and build the GT-free criteria from the left one (once per frame).
+
+        The criteria of the last left image (and ROI) are kept and compared by content: a
+        left image seen again (several estimates of one scene, a repeated frame) reuses them.
+        """
         left8 = grey8(left, "the left image")
         right8 = grey8(right, "the right image")
         if left8.shape[1] < 2:
@@ -320,6 +387,19 @@ class GroundTruthFree:
                 f"the right image is {right8.shape[1]}×{right8.shape[0]} but the left image is "
                 f"{left8.shape[1]}×{left8.shape[0]}"
             )
+        roi_array = None if roi is None else np.asarray(roi)
+        cached = self._criteria_cache
+        if cached is not None and _same(cached[0], left8) and _same(cached[1], roi_array):
+            partition, runs = cached[2], cached[3]
+        else:
+            partition = self._partition(left8, roi_array)
+            runs = cell_runs(partition.cells)
+            kept = None if roi_array is None else roi_array.copy()
+            self._criteria_cache = (left8.copy(), kept, partition, runs)
+        return ImagePair(left8, right8, partition, neighbour_pairs(right8), runs)
+
+    def _partition(self, left8: np.ndarray, roi: np.ndarray | None) -> crit.Partition:
+        """The GT-free criteria of one left image (and region of interest)."""
         everywhere = np.ones(left8.shape, bool)
         sets = []
         for name in self.criteria:
@@ -332,9 +412,8 @@ class GroundTruthFree:
                     "the 'roi' criterion set needs a region-of-interest mask or label image"
                 )
             else:
-                sets.append(crit.roi_set(everywhere, np.asarray(roi), self.roi_names))
-        partition = crit.build_partition(everywhere, sets)
-        return ImagePair(left8, right8, partition, cell_runs(partition.cells))
+                sets.append(crit.roi_set(everywhere, roi, self.roi_names))
+        return crit.build_partition(everywhere, sets)
 
     def score(
         self,
@@ -356,13 +435,14 @@ class GroundTruthFree:
         sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         photometric_sums(
             pair.left,
-            pair.right,
+            pair.right_pairs,
             coded,
             self.missing != "ignore",
             pair.runs,
             right_coded,
             self.occlusion_tolerance,
             self.lrc_threshold,
+            partition.cells,
             sums,
         )
         return Scores(

@@ -257,7 +257,8 @@ def selection_objectives(
     Per selected sequence (database order), on its common stamps: per (criterion, measure)
     the measure of the summed sums (``granularity='sequence'``), or per frame, per
     (criterion, measure) the frame's measure (``'frame'``). A criterion no chosen method has
-    there (no such points) gives no objective, as in the summary; a method missing a
+    there (no such points) gives no objective, as in the summary, nor does a measure on a
+    criterion it does not apply to (:func:`skipped_pairs`); a method missing a
     criterion others have is NaN there. Higher-is-better measures (density) are negated. Names as the summary:
     ``criterion/measure @sequence`` and ``criterion/measure @sequence:stamp``.
     """
@@ -285,10 +286,20 @@ def selection_objectives(
                 if not any(m in scores and criterion in scores[m] for m in methods):
                     continue  # no such points there (e.g. no boundary in a frame)
                 for measure in measures:
+                    if not applies(measure, criterion):
+                        continue  # GT measures on gtfree: criteria, vpe on GT ones: undefined
                     names.append(f"{criterion}/{measure}{label}")
                     columns.append([_value(scores, m, criterion, measure) for m in methods])
     matrix = np.array(columns, dtype=np.float64).T if columns else np.empty((len(methods), 0))
     return methods, names, matrix.reshape(len(methods), len(names))
+
+
+def skipped_pairs(selection: Selection) -> list[str]:
+    """The chosen ``criterion/measure`` pairs that give no objective: the measure is undefined there.
+
+    GT measures on ``gtfree:`` criteria, ``vpe``/``lrc`` on GT criteria (as the page says).
+    """
+    return [f"{c}/{m}" for c in selection.criteria for m in selection.measures if not applies(m, c)]
 
 
 def evaluate_selection(
@@ -488,7 +499,14 @@ def build_report_data(
         "sequences": sequence_list,
         "methods": methods,
         "relative": info["relative"],
-        "criteria": [{"name": c, "overlapping": c in overlapping} for c in criteria],
+        "criteria": [
+            {
+                "name": c,
+                "overlapping": c in overlapping,
+                "applies": [applies(m, c) for m in measures],
+            }
+            for c in criteria
+        ],
         "measures": [measure_recipe(m, thresholds) for m in measures],
         "problems": {
             "total": len(problems),

@@ -457,6 +457,12 @@
         return D.criteria[c].name + '/' + D.measures[q].name;
       });
     });
+    // a measure gives objectives only on the criteria it is defined on (core.measures.applies):
+    // GT measures not on gtfree: criteria, vpe and lrc only there
+    const skipped = [];
+    criteria.forEach(function (c, ci) {
+      measures.forEach(function (q, qi) { if (!applies(c, q)) skipped.push(suffixes[ci][qi]); });
+    });
     for (const s of seqs) {
       const frames = commonFrames(s, methods, selection.frames);
       common[s] = frames;
@@ -472,6 +478,7 @@
           // a criterion no chosen method has there (no such points) gives no objective
           if (!seqTotals[c].some(function (t) { return t; })) return;
           measures.forEach(function (q, qi) {
+            if (!applies(c, q)) return;
             const recipe = D.measures[q];
             names.push(suffixes[ci][qi] + ' @' + seqName);
             const column = new Float64Array(methods.length);
@@ -489,6 +496,7 @@
           const base = (f * D.C + c) * D.M;
           if (!methods.some(function (m) { return D.present[base + m]; })) return;
           measures.forEach(function (q, qi) {
+            if (!applies(c, q)) return;
             const recipe = D.measures[q];
             names.push(suffixes[ci][qi] + label);
             const column = new Float64Array(methods.length);
@@ -510,7 +518,15 @@
       seqs: seqs, methodIdx: methods, criteria: criteria, measures: measures,
       methods: methods.map(function (m) { return D.methods[m]; }),
       names: names, matrix: matrix, n: n, m: width, common: common, totals: totals,
+      skipped: skipped,
     };
+  }
+
+  /* Whether measure q is defined on criterion c (reports written before this was recorded:
+   * every pair). */
+  function applies(c, q) {
+    const table = D.criteria[c].applies;
+    return !table || table[q] !== false;
   }
 
   function compute(selection) {
@@ -520,8 +536,11 @@
     built.models = null;
     if (!built.n) built.problem = 'Select at least one method.';
     else if (!built.m) {
-      built.problem = 'No objectives: select at least one sequence, criterion and measure, and ' +
-        'frames that every selected method delivered.';
+      built.problem = built.skipped.length && built.criteria.length && built.measures.length
+        ? 'No objectives: none of the selected measures applies to the selected criteria ' +
+          '(ground-truth measures need ground-truth criteria; vpe and lrc need gtfree: criteria).'
+        : 'No objectives: select at least one sequence, criterion and measure, and ' +
+          'frames that every selected method delivered.';
     } else built.models = evaluateModels(built.methods, built.matrix, built.n, built.m);
     return built;
   }
@@ -531,7 +550,9 @@
   window.dispevalModels = function (selection, withMatrix) {
     if (!D) throw new Error('the report data is not loaded yet');
     const built = compute(selection);
-    const out = { methods: built.methods, objectives: built.names, models: null };
+    const out = {
+      methods: built.methods, objectives: built.names, skipped: built.skipped, models: null,
+    };
     if (withMatrix) {
       out.matrix = [];
       for (let i = 0; i < built.n; i++) {
@@ -958,6 +979,13 @@
     if (selection.granularity === 'sequence' && built.measures.some(function (q) {
       return D.measures[q].kind === 'stored';
     })) warn('Quantile measures are not summable over frames: per sequence they are undefined (worst for every method); choose per-frame objectives.');
+    if (built.skipped.length) {
+      warn('Skipped ' + built.skipped.length + ' criterion/measure pair' +
+        (built.skipped.length === 1 ? '' : 's') + ' that do' + (built.skipped.length === 1 ? 'es' : '') +
+        ' not apply (ground-truth measures are undefined on gtfree: criteria, vpe and lrc on ' +
+        'ground-truth criteria): ' + built.skipped.slice(0, 8).join(', ') +
+        (built.skipped.length > 8 ? ', …' : '') + '.');
+    }
     const relative = built.methodIdx.filter(function (m) { return D.raw.relative[m]; });
     if (relative.length && built.measures.some(function (q) { return D.measures[q].name.indexOf('sze') === 0; })) {
       warn('SZE is relative (f·B = 1, no camera) for: ' + relative.map(function (m) { return D.methods[m]; }).join(', '));
@@ -1230,6 +1258,7 @@
       'bar colour = A* group.') +
       (recipe.kind === 'stored' ? ' Quantiles are not summable: undefined.' : '');
     for (const c of built.criteria) {
+      if (!applies(c, state.plotMeasure)) continue;  // e.g. bmp on gtfree: criteria: undefined
       const values = built.methodIdx.map(function (_, i) {
         let totals = null;
         for (const s of seqs) {
