@@ -116,6 +116,7 @@ def bench_case(gt: np.ndarray, est: np.ndarray, camera: Camera, label: str, repe
     t_interp = timed(lambda: interpolating.score(reference, est), repeat)
     t_numpy = timed(lambda: numpy_baseline(gt, est, masks, camera, 1.0, 0.01), max(3, repeat // 4))
     t_array = timed(lambda: fused.score(gt, est, camera), repeat)  # GT found in the cache
+    t_array_interp = timed(lambda: interpolating.score(gt, est, camera), repeat)
     others = [np.where(gt > 0, gt + shift, gt) for shift in (0.5, 1.0, 1.5)]
     for other in others:  # three more GT maps cached; scoring cycles through all four
         fused.score(other, est, camera)
@@ -149,6 +150,11 @@ def bench_case(gt: np.ndarray, est: np.ndarray, camera: Camera, label: str, repe
     print(
         f"  array API score(gt, est), GT cached     {t_array:8.2f} ms   {t_numpy / t_array:5.1f}× faster"
         f"   ({t_array / t_fused:4.2f}× the prepared reference)"
+    )
+    print(
+        f"  array API, interpolate (default)        {t_array_interp:8.2f} ms   "
+        f"{t_numpy / t_array_interp:5.1f}× faster"
+        f"   ({t_array_interp / t_interp:4.2f}× the prepared reference)"
     )
     print(
         f"  array API, cycling 4 cached GT maps     {t_cycle:8.2f} ms   {t_numpy / t_cycle:5.1f}× faster"

@@ -10,6 +10,7 @@ import pytest
 
 from dispeval_ros.core import Camera, Evaluator, Scores
 from dispeval_ros.core import criteria as crit
+from dispeval_ros.core.kernels import FIELD_SUM_EZ, FIELD_SUM_EZ2, FIELD_SUM_IZ2, FIELD_SUM_RELZ
 from dispeval_ros.core.measures import DEPTH_MEASURES, SUM_FIELDS, parse_measures
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.scenes import list_frames
@@ -181,6 +182,30 @@ def test_depth_measures_every_policy_and_sequences_exact(missing: str) -> None:
             assert combined["all"][name] == pytest.approx(value, rel=1e-9), name
     per_range = sum(combined[c]["n"] for c in ("0-10m", "10-30m", "30+m"))
     assert per_range == combined["all"]["n"]
+
+
+@pytest.mark.parametrize("missing", ["interpolate", "thesis", "ignore"])
+def test_depth_terms_only_when_asked_and_disparity_sums_unchanged(missing: str) -> None:
+    """The scoring pass skips the depth-domain sums unless a depth measure is asked for; the
+    disparity-domain sums are bit-identical either way (the two loops share their terms)."""
+    rng = np.random.default_rng(5)
+    camera = Camera(f=700.0, baseline=0.5, doffs=2.5)
+    gt = rng.uniform(3, 80, (40, 50)).astype(np.float32)
+    gt[rng.random(gt.shape) < 0.2] = np.nan
+    est = (gt + rng.normal(0, 2.0, gt.shape)).astype(np.float32)
+    est[rng.random(gt.shape) < 0.1] = 0
+    disparity = ("bmp", "mae", "mse", "mre", "sze", "bmpre", "d1", "density")
+    plain = Evaluator(("all", "depth"), disparity, missing=missing).score(gt, est, camera)
+    both = Evaluator(("all", "depth"), (*disparity, *DEPTH_MEASURES), missing=missing).score(
+        gt, est, camera
+    )
+    depth_columns = [FIELD_SUM_EZ, FIELD_SUM_EZ2, FIELD_SUM_RELZ, FIELD_SUM_IZ2]
+    assert not plain.sums[:, depth_columns].any()
+    assert both.sums[:, depth_columns].all()
+    kept = [c for c in range(plain.sums.shape[1]) if c not in depth_columns]
+    assert np.array_equal(plain.sums[:, kept], both.sums[:, kept])
+    for name in disparity:
+        assert plain["all"][name] == both["all"][name], name
 
 
 def test_depth_measure_names() -> None:

@@ -13,6 +13,7 @@ from dispeval_ros.core import criteria as crit
 from dispeval_ros.core import kernels
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.measures import (
+    DEPTH_MEASURES,
     FIELDS,
     Scores,
     parse_measures,
@@ -201,6 +202,7 @@ class Evaluator:
         self.roi_names = dict(roi_names) if roi_names else None
         self.thresholds = thresholds_for(self.measures, self.delta)
         self._quantiles = [m for m in self.measures if quantile_level(m) is not None]
+        self._depth_terms = any(m in DEPTH_MEASURES for m in self.measures)
         self._cache: list[tuple[_CacheInputs, Reference]] = []
         self._cache_size = cache_size
         self._local = threading.local()
@@ -374,6 +376,7 @@ class Evaluator:
             self.mu,
             self.thresholds,
             0.0 if self.missing == "ignore" else 1.0,
+            self._depth_terms,
             cell_sums,
         )
         sums = partition.membership.astype(np.float64) @ cell_sums

@@ -153,6 +153,28 @@ def gather_estimate(
         out[k] = raw if valid else (raw if coded else -0.0)
 
 
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy", inline="always")
+def _disparity_terms(
+    raw: float, d: float, fb: float, depth_offset: float, delta: float, missing_weight: float
+) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
+    """One point's disparity-domain terms (weight, valid, e, e², rel, SZE, BMPRE, D1, bad)."""
+    weight = 1.0 if raw > 0.0 else missing_weight
+    value = abs(raw)
+    e = abs(value - d)
+    rel = e / d
+    return (
+        weight,
+        1.0 if raw > 0.0 else 0.0,
+        weight * e,
+        weight * e * e,
+        weight * rel,
+        weight * fb * e / abs((d + depth_offset) * (value + depth_offset)),
+        weight * rel if e > delta else 0.0,
+        weight if (e > 3.0 and e > 0.05 * d) else 0.0,
+        weight if e > delta else 0.0,
+    )
+
+
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def _cell_terms(
     values: np.ndarray,
@@ -162,6 +184,7 @@ def _cell_terms(
     mu: float,
     delta: float,
     missing_weight: float,
+    depth_terms: bool,
 ) -> tuple[
     float, float, float, float, float, float, float, float, float, float, float, float, float
 ]:  # pragma: no cover
@@ -169,6 +192,9 @@ def _cell_terms(
 
     Depth terms use ``Z = f·B / max(d + doffs, μ)``: exact for every point with
     ``d + doffs ≥ μ``, and a missing estimate scored as 0 costs a large but finite depth.
+    They cost as much as all the others together (two more divisions per point), so they
+    are summed only when ``depth_terms`` (a depth-domain measure was asked for) and are 0
+    otherwise; the loop is chosen once per cell, not per point.
     """
     doffs = depth_offset - mu
     n_valid = 0.0
@@ -184,30 +210,42 @@ def _cell_terms(
     sum_ez2 = 0.0
     sum_relz = 0.0
     sum_iz2 = 0.0
-    for k in range(values.shape[0]):
-        raw = np.float64(values[k])
-        weight = 1.0 if raw > 0.0 else missing_weight
-        value = abs(raw)
-        d = np.float64(gt[k])
-        e = abs(value - d)
-        rel = e / d
-        n_valid += 1.0 if raw > 0.0 else 0.0
-        n_eval += weight
-        sum_e += weight * e
-        sum_e2 += weight * e * e
-        sum_rel += weight * rel
-        sze += weight * fb * e / abs((d + depth_offset) * (value + depth_offset))
-        bmpre += weight * rel if e > delta else 0.0
-        d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
-        bad += weight if e > delta else 0.0
-        inverse_d = max(d + doffs, mu)  # f·B / Z of the GT
-        inverse_e = max(value + doffs, mu)
-        ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
-        sum_ez += weight * ez
-        sum_ez2 += weight * ez * ez
-        sum_relz += weight * abs(inverse_d - inverse_e) / inverse_e  # |Z_E − Z_D| / Z_D
-        iz = (inverse_e - inverse_d) / fb
-        sum_iz2 += weight * iz * iz
+    if depth_terms:
+        for k in range(values.shape[0]):
+            raw = np.float64(values[k])
+            d = np.float64(gt[k])
+            terms = _disparity_terms(raw, d, fb, depth_offset, delta, missing_weight)
+            n_eval += terms[0]
+            n_valid += terms[1]
+            sum_e += terms[2]
+            sum_e2 += terms[3]
+            sum_rel += terms[4]
+            sze += terms[5]
+            bmpre += terms[6]
+            d1 += terms[7]
+            bad += terms[8]
+            inverse_d = max(d + doffs, mu)  # f·B / Z of the GT
+            inverse_e = max(abs(raw) + doffs, mu)
+            ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
+            sum_ez += terms[0] * ez
+            sum_ez2 += terms[0] * ez * ez
+            sum_relz += terms[0] * abs(inverse_d - inverse_e) / inverse_e  # |Z_E − Z_D| / Z_D
+            iz = (inverse_e - inverse_d) / fb
+            sum_iz2 += terms[0] * iz * iz
+    else:
+        for k in range(values.shape[0]):
+            terms = _disparity_terms(
+                np.float64(values[k]), np.float64(gt[k]), fb, depth_offset, delta, missing_weight
+            )
+            n_eval += terms[0]
+            n_valid += terms[1]
+            sum_e += terms[2]
+            sum_e2 += terms[3]
+            sum_rel += terms[4]
+            sze += terms[5]
+            bmpre += terms[6]
+            d1 += terms[7]
+            bad += terms[8]
     return (
         n_valid,
         n_eval,
@@ -248,6 +286,7 @@ def accumulate_cells(
     mu: float,
     thresholds: np.ndarray,
     missing_weight: float,
+    depth_terms: bool,
     sums: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Accumulate every measure's terms per cell in one pass over the valid-GT points.
@@ -259,7 +298,8 @@ def accumulate_cells(
     as a floor of ``d + doffs`` (see :func:`_cell_terms`). ``thresholds[0]`` is δ (bmp,
     bmpre), the others the bad-x thresholds (``inf`` entries are unused).
     ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
-    measures) and 1 otherwise.
+    measures) and 1 otherwise. The depth-domain columns are summed only when
+    ``depth_terms`` (otherwise they stay 0; measures are derived from requested fields only).
     """
     for cell in range(offsets.shape[0] - 1):
         start = offsets[cell]
@@ -267,7 +307,7 @@ def accumulate_cells(
         cell_values = values[start:stop]
         cell_gt = gt_sorted[start:stop]
         terms = _cell_terms(
-            cell_values, cell_gt, fb, depth_offset, mu, thresholds[0], missing_weight
+            cell_values, cell_gt, fb, depth_offset, mu, thresholds[0], missing_weight, depth_terms
         )
         row = sums[cell]
         row[FIELD_N] += stop - start
