@@ -208,6 +208,43 @@ def test_measure_consistency_small_and_mappings() -> None:
     assert by_name == pytest.approx(1 / 3)
 
 
+def _consistency_by_pairs(first: list[int], second: list[int]) -> float:
+    """Every pair compared: the definition, for small inputs."""
+    n = len(first)
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    agree = sum(np.sign(first[i] - first[j]) == np.sign(second[i] - second[j]) for i, j in pairs)
+    return agree / len(pairs) if pairs else 1.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.integers(2, 40).flatmap(
+        lambda n: st.tuples(
+            st.lists(st.integers(1, 5), min_size=n, max_size=n),
+            st.lists(st.integers(1, 5), min_size=n, max_size=n),
+        )
+    )
+)
+def test_measure_consistency_equals_every_pair_compared(
+    groups: tuple[list[int], list[int]],
+) -> None:
+    first, second = groups
+    assert measure_consistency(first, second) == pytest.approx(
+        _consistency_by_pairs(first, second), abs=1e-12
+    )
+
+
+def test_measure_consistency_of_a_sweep_without_pair_arrays() -> None:
+    """10⁴ methods (5·10⁷ pairs): counted, not listed; known answers on structured cases."""
+    n = 10_000
+    ranks = np.arange(n)
+    assert measure_consistency(ranks, ranks) == 1.0
+    assert measure_consistency(ranks, ranks[::-1]) == 0.0
+    halves = ranks // (n // 2)  # two groups in both: only cross-half pairs agree
+    assert measure_consistency(halves, halves) == 1.0
+    assert measure_consistency(halves, ranks) == pytest.approx((n // 2) ** 2 / (n * (n - 1) / 2))
+
+
 def test_measure_consistency_rejects_mismatches() -> None:
     with pytest.raises(ConfigurationError, match="same methods"):
         measure_consistency([1, 2], [1, 2, 3])

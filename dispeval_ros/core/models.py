@@ -20,6 +20,7 @@ non-dominated sorting (:mod:`dispeval_ros.core.dominance`): sweeps of thousands 
 
 from __future__ import annotations
 
+import bisect
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -267,15 +268,30 @@ def measure_consistency(groups_a: GroupsLike, groups_b: GroupsLike) -> float:
     group"; two measures are consistent on a pair when they give the same relation. Groupings
     are arrays in the same method order, or mappings method → group. Fewer than two methods
     give 1.0 (nothing disagrees).
+
+    Agreeing pairs are those tied in both groupings plus the concordant ones (better in both),
+    counted by a sweep in O(N log N)-ish time and O(N) memory: sweeps of 10⁴ methods have 5·10⁷
+    pairs, too many to list.
     """
     first, second = _groups_arrays(groups_a, groups_b)
     n = first.size
     if n < 2:
         return 1.0
-    upper = np.triu_indices(n, k=1)
-    relation_a = np.sign(first[:, None] - first[None, :])[upper]
-    relation_b = np.sign(second[:, None] - second[None, :])[upper]
-    return float(np.mean(relation_a == relation_b))
+    _, tied = np.unique(np.stack([first, second], axis=1), axis=0, return_counts=True)
+    agreeing = int((tied * (tied - 1) // 2).sum())
+    order = np.lexsort((second, first))
+    by_first, by_second = first[order].tolist(), second[order].tolist()
+    below: list[Any] = []  # second-grouping values of methods in a strictly better first group
+    start = 0
+    while start < n:
+        stop = start
+        while stop < n and by_first[stop] == by_first[start]:
+            stop += 1
+        agreeing += sum(bisect.bisect_left(below, value) for value in by_second[start:stop])
+        for value in by_second[start:stop]:
+            bisect.insort(below, value)
+        start = stop
+    return agreeing / (n * (n - 1) / 2)
 
 
 def _join(names: Sequence[str]) -> str:
