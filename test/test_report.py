@@ -851,6 +851,17 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
         assert "NaN" not in (page.text_content("#objective-names") or "")
         # the totals of the plotted measure (bmp) only on the criteria it applies to
         assert page.evaluate("document.getElementById('bars').children.length") == 2
+        # the per-frame curves: a measure on a criterion it is not defined on plots nothing
+        # (no red "undefined" marks) and says why; on a criterion it applies to, it plots
+        page.select_option("#plot-measure", str(store.measures().index("vpe")))
+        page.select_option("#plot-criterion", str(store.criteria().index("all")))
+        note = page.text_content("#curves-note") or ""
+        assert "vpe is not defined on criterion all" in note
+        assert "red marks" not in note
+        page.select_option("#plot-criterion", str(store.criteria().index("gtfree:all")))
+        note = page.text_content("#curves-note") or ""
+        assert note.startswith("vpe of criterion gtfree:all")
+        assert "0 red marks" in note
         # only GT measures on only gtfree: criteria: no objective, and the page says why
         toggle(("all", "interior"), "vpe")
         status = page.text_content("#status") or ""

@@ -852,7 +852,7 @@
     });
     ui.canvas = el('canvas', { id: 'curves' });
     ui.tooltip = el('div', { id: 'tooltip', className: 'tooltip', hidden: '' });
-    ui.curvesNote = el('p', { className: 'muted small' });
+    ui.curvesNote = el('p', { id: 'curves-note', className: 'muted small' });
     const curves = el('section', { id: 'curves-view', className: 'view' }, [
       el('h2', { text: 'Per-frame scores' }),
       el('div', { className: 'plot-controls' }, [
@@ -1079,11 +1079,16 @@
       for (const f of chosenFrames(s, selection.frames)) frames.push(f);
     }
     const methods = built.methodIdx;
+    const defined = applies(c, state.plotMeasure);  // e.g. vpe on a GT criterion: nothing to plot
     const series = methods.map(function (m) {
       const values = new Float64Array(frames.length);
       const flags = new Uint8Array(frames.length); // 1 missing, 2 undefined, 3 outlier
       const finite = [];
       frames.forEach(function (f, x) {
+        if (!defined) {
+          values[x] = NaN;
+          return;
+        }
         const r = (f * D.C + c) * D.M + m;
         if (!D.present[r]) {
           values[x] = NaN;
@@ -1111,13 +1116,21 @@
     let ymax = 0;
     for (const s of series) if (isFinite(s.top) && s.top > ymax) ymax = s.top;
     if (!(ymax > 0)) ymax = 1;
-    D.curveState = { frames: frames, series: series, methods: methods, ymax: ymax, recipe: recipe };
+    D.curveState = {
+      frames: frames, series: series, methods: methods, ymax: ymax, recipe: recipe, defined: defined,
+    };
     drawCurves(separators);
     const failures = series.reduce(function (sum, s) {
       let count = 0;
       for (const flag of s.flags) if (flag) count += 1;
       return sum + count;
     }, 0);
+    if (!defined) {
+      ui.curvesNote.textContent = recipe.name + ' is not defined on criterion ' +
+        D.criteria[c].name + ' (ground-truth measures need a GT criterion, vpe and lrc a ' +
+        'gtfree: one): nothing to plot; choose another measure or criterion.';
+      return;
+    }
     ui.curvesNote.textContent = recipe.name + ' of criterion ' + D.criteria[c].name + ' on ' +
       frames.length + ' selected frames; common scale 0 – ' + fmt(ymax) +
       ' (outliers drawn at the top); ' + failures + ' red marks.' +
@@ -1225,6 +1238,10 @@
     const series = cs.series[row];
     const at = Math.min(Math.max(index, 0), g.n - 1);
     const flag = series.flags[at];
+    if (!cs.defined) {
+      ui.tooltip.hidden = true;
+      return;
+    }
     const status = ['', ' (missing: no scores for this frame)', ' (undefined)', ' (outlier)'][flag];
     ui.tooltip.textContent = D.methods[cs.methods[row]] + ' · ' + D.sequences[s].name +
       ' frame ' + (local + 1) + ' (' + stampText(D.sequences[s].stamps, local) + ') · ' +
