@@ -32,7 +32,7 @@ from dispeval_ros.dds.diagnostics import diagnostic_array, records_of, vector_me
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import MatchCounts, ResultsStore
 from dispeval_ros.offline.make_bag import (
     CLOUD_TOPIC,
     GT_TOPIC,
@@ -43,6 +43,7 @@ from dispeval_ros.offline.make_bag import (
     TF_STATIC_TOPIC,
 )
 from dispeval_ros.offline.sample import find_sample_bag
+from dispeval_ros.stream.delivery import read_delivery
 from dispeval_ros.stream.vectors import StatusRecord, scores_from_status
 
 HAVE_DDS = importlib.util.find_spec("cyclonedds") is not None
@@ -422,6 +423,54 @@ def test_a_looping_stream_makes_new_sequences(
         first, second = (store.stamps(s) for s in store.sequences())
         assert first == second
         assert len(first) == 25
+        # the evaluator's counts are booked per sequence (from its delivery records), and
+        # over the sequences they add up to its final counts
+        booked = [store.match_counts(s)[name] for s in store.sequences()]
+        assert [c.matched for c in booked] == [25, 25]
+        final = session.counts[name]
+        for field in ("matched", "unmatched", "dropped", "failed"):
+            assert sum(getattr(c, field) for c in booked) == getattr(final, field), field
+        assert store.problems() == []
+
+
+@needs_dds
+def test_summarizer_books_the_evaluator_counts_per_sequence(
+    transports: tuple[Any, Any], tmp_path: Path
+) -> None:
+    """Counts from delivery records go to the sequence they happened in; arrays that never
+    arrived are counted as dropped, with a problem saying so."""
+    from dispeval_ros.core import Evaluator
+    from dispeval_ros.dds.summarizer import DdsSummarizer
+    from dispeval_ros.stream.core import MethodCounts
+    from dispeval_ros.stream.delivery import Delivery
+    from dispeval_ros.stream.summarizer import SummarizerConfig
+
+    gt = np.full((6, 8), 10.0, np.float32)
+    frame = {"m": Evaluator(("all",)).score(gt, gt + 0.5)}
+    summarizer = DdsSummarizer(
+        transports[0], SummarizerConfig(tmp_path / "out", every_n=2), {"t": 1}
+    )
+
+    def delivery(index: int, matched: int, unmatched: int, dropped: int = 0) -> list[Delivery]:
+        counts = {"m": MethodCounts(matched, unmatched, dropped, 0)}
+        return [Delivery("evaluator", index, final=False, counts=counts)]
+
+    second = 1_000_000_000
+    # sequence 1: two frames, the evaluator could not match 2 estimates so far
+    summarizer.add(1 * second, frame, [], delivery(1, 1, 1))
+    summarizer.add(2 * second, frame, [("m", "late estimate")], delivery(2, 2, 2))
+    # the stream starts again (a stamp seen before): sequence 2; array 4 never arrives
+    summarizer.add(1 * second, frame, [], delivery(3, 3, 3))
+    final = Delivery("evaluator", 4, final=True, counts={"m": MethodCounts(4, 5, 1, 0)})
+    summarizer.finish(final)
+    with ResultsStore.open(tmp_path / "out") as store:
+        first, last = store.sequences()
+        assert store.match_counts(first)["m"] == MatchCounts(2, 2, 0, 0)
+        # 5 - 2 unmatched; dropped: 1 by the evaluator + the 1 scored frame that never came
+        assert store.match_counts(last)["m"] == MatchCounts(1, 3, 2, 0)
+        problems = store.problems()
+        assert [(p.sequence, p.stamp, p.method) for p in problems[:1]] == [(first, 2 * second, "m")]
+        assert any("never reached the summarizer" in p.message for p in problems[1:])
 
 
 # -- dispeval live + dispeval play, separate processes ---------------------------------------
@@ -584,6 +633,12 @@ def test_live_and_play_over_dds_match_dispeval_bag(
     # (each with one clear problem); the image GT falls back to the DisparityImage's f and t.
     waiting = set(gt_stamps[:3]) if gt_mode == "cloud" else set()
     startup: set[int] = set()
+    # every scores array carries one delivery record of the one evaluator, numbered 1, 2, …
+    deliveries = [[d for d in map(read_delivery, records) if d] for _, records in scores]
+    assert all(len(found) == 1 for found in deliveries)
+    assert len({found[0].source for found in deliveries}) == 1
+    assert [found[0].index for found in deliveries] == list(range(1, len(scores) + 1))
+    scores = [(stamp, [r for r in records if not read_delivery(r)]) for stamp, records in scores]
     for stamp, records in scores:
         assert stamp in gt_stamps
         if stamp in waiting and any("no camera yet" in r.message for r in records):

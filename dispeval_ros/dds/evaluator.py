@@ -9,6 +9,8 @@ published
   :func:`~dispeval_ros.stream.vectors.scores_status`, with the exact sums a summarizer needs;
   a frame's problems as ERROR statuses without values, named after the method or
   ``ground_truth``), reliable;
+  and the delivery record of :mod:`~dispeval_ros.stream.delivery` (this evaluator's id, the
+  array's index, its per-method counts so far), as the rclpy evaluator sends them;
 - on ``/dispeval/<method>/vector`` as a ``std_msgs/msg/Float64MultiArray`` (the labelled
   numbers of :func:`~dispeval_ros.stream.vectors.score_vector`).
 
@@ -20,6 +22,8 @@ is not dropped as late.
 
 from __future__ import annotations
 
+import os
+import secrets
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -41,6 +45,7 @@ from dispeval_ros.dds.wire import (
 )
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
+from dispeval_ros.stream.delivery import Delivery, delivery_record
 from dispeval_ros.stream.runner import LiveEvaluator
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
@@ -107,6 +112,9 @@ class DdsEvaluator:
         self._infos: dict[str, object] = {}
         self._static_transforms: list[object] = []
         self.published = 0
+        """Scores arrays published so far."""
+        self.source_id = f"dispeval-live@{os.getpid()}-{secrets.token_hex(3)}"
+        """This evaluator in delivery records (unique per run)."""
         self.publish_errors = 0
         self.restarts = 0
         self.scores_writer = transport.writer(SCORES_TOPIC, DIAGNOSTIC_ARRAY, RESULTS)
@@ -220,10 +228,10 @@ class DdsEvaluator:
         return records
 
     def publish(self, result: FrameResult) -> None:
-        """Publish one frame's scores and every method's vector."""
-        self.scores_writer.publish(
-            diagnostic_array(self.typestore, result.stamp, self.records(result))
-        )
+        """Publish one frame's scores (with the delivery record) and every method's vector."""
+        records = self.records(result)
+        records.append(delivery_record(self.source_id, self.published + 1, self.counts()))
+        self.scores_writer.publish(diagnostic_array(self.typestore, result.stamp, records))
         for method, scores in result.scores.items():
             labels = self._labels.get(method)
             if labels is None:
@@ -249,6 +257,10 @@ class DdsEvaluator:
                 )
                 for method, past in self._past.items()
             }
+
+    def final_delivery(self) -> Delivery:
+        """The final delivery record, for a summarizer in this process (after :meth:`stop`)."""
+        return Delivery(self.source_id, self.published, final=True, counts=self.counts())
 
     @property
     def queue_drops(self) -> int:

@@ -108,8 +108,9 @@ class LiveSession:
             self.complete = self.summarizer.wait_for(
                 self.evaluator.published, max(0.0, deadline - time.monotonic())
             )
-            self.counts = self.evaluator.counts()
-            self.summary = self.summarizer.finish(self.counts)
+            final = self.evaluator.final_delivery()
+            self.counts = final.counts
+            self.summary = self.summarizer.finish(final)
         finally:
             self._final = self.status()
             self.transport.close()

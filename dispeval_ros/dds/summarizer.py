@@ -4,7 +4,10 @@ Every ``DiagnosticArray`` on ``/dispeval/scores`` (reliable, keep-all subscripti
 back into exact :class:`~dispeval_ros.core.Scores` (the statuses carry the raw sums) and given
 to :class:`~dispeval_ros.stream.summarizer.SummarizerCore`, which writes the same results
 database, ``frames.csv`` and ``summary.json`` as ``dispeval bag``. ERROR statuses without
-values are the evaluator's per-frame problems; they are stored as the database's problems.
+values are the evaluator's per-frame problems; they are stored as the database's problems. The
+evaluator's delivery records (:mod:`~dispeval_ros.stream.delivery`) give its unmatched, dropped
+and failed counts, booked per sequence, and the scored frames that never arrived, counted as
+dropped: as the rclpy summarizer does it, with the same ledger.
 After every written unit the A* Groups go out on ``/dispeval/groups`` (reliable,
 transient-local, so a late subscriber gets the latest at once). Recomputing the summary costs
 more as the database grows, so the unit grows too when needed: summarising never takes more
@@ -37,13 +40,11 @@ from dispeval_ros.dds.wire import (
     SUMMARIZER_INPUT,
 )
 from dispeval_ros.errors import InputError
-from dispeval_ros.io.store import MatchCounts, Problem
-from dispeval_ros.stream.core import MethodCounts
+from dispeval_ros.stream.delivery import Delivery, DeliveryLedger, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.vectors import read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
-COUNTS_UNIT = "live-counts"
 SUMMARY_SHARE = 0.1
 """At most this share of the wall time goes to recomputing the summary."""
 MAX_PERIOD = 100_000
@@ -76,7 +77,9 @@ class DdsSummarizer:
         self._lock = threading.Condition()
         self._stamps: set[int] = set()
         self._newest: int | None = None
-        self._problems: dict[str, list[Problem]] = {}
+        self._problems: list[tuple[int | None, str | None, str]] = []
+        """Problems of the current sequence, booked with its counts when it closes."""
+        self._ledger = DeliveryLedger()
         self.received = 0
         self.ignored = 0
         self.frames = 0
@@ -102,22 +105,28 @@ class DdsSummarizer:
         stamp, records = records_of(received.msg)
         scores: dict[str, Scores] = {}
         problems: list[tuple[str | None, str]] = []
+        deliveries: list[Delivery] = []
         for record in records:
-            problem = read_problem(record)
-            if problem is not None:
-                problems.append(problem)
-                continue
             try:
+                delivery = read_delivery(record)
+                if delivery is not None:
+                    deliveries.append(delivery)
+                    continue
+                problem = read_problem(record)
+                if problem is not None:
+                    problems.append(problem)
+                    continue
                 scores[record.name] = scores_from_status(record.values)
             except InputError:
-                continue  # not a dispeval status
-        self.add(stamp, scores, problems)
+                continue  # not a dispeval status, or a malformed one
+        self.add(stamp, scores, problems, deliveries)
 
     def add(
         self,
         stamp: int,
         scores: Mapping[str, Scores],
         problems: list[tuple[str | None, str]] | None = None,
+        deliveries: list[Delivery] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups."""
         summary = None
@@ -126,13 +135,13 @@ class DdsSummarizer:
             if scores or problems:
                 stale = self._newest is not None and stamp < self._newest - self._restart_ns
                 if stamp in self._stamps or stale:
+                    self._book_counts(closing=False)
                     self.core.new_sequence()
                     self._stamps.clear()
                     self._newest = None
-                for method, message in problems or ():
-                    self._problems.setdefault(self.core.sequence, []).append(
-                        Problem(self.core.sequence, stamp, method, message)
-                    )
+                self._problems.extend((stamp, method, text) for method, text in problems or ())
+            for delivery in deliveries or ():
+                self._ledger.add(delivery, scores)
             if scores:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
@@ -192,38 +201,34 @@ class DdsSummarizer:
     # -- shutdown ----------------------------------------------------------------------------
 
     def finish(
-        self, counts: Mapping[str, MethodCounts] | None = None, ack_timeout_s: float = 2.0
+        self, final: Delivery | None = None, ack_timeout_s: float = 2.0
     ) -> RunSummary | None:
         """Take what arrived, write everything, export, publish the final groups.
 
-        The stored problems come from the wire; ``counts`` (the evaluator's, when it runs in
-        this process) adds the unmatched, dropped and failed frames to the database.
+        ``final`` is the evaluator's final delivery record when it runs in this process
+        (:meth:`DdsEvaluator.final_delivery`): its exact counts close the ledger.
         """
         if self._finished:
             return self.core.summary
         self._finished = True
         self.thread.stop(drain=True)
         with self._lock:
-            store = self.core.store
+            if final is not None:
+                self._ledger.add(final)
             if self.frames:
-                for sequence, problems in self._problems.items():
-                    store.add_unit(sequence, "live-problems", [], problems, None)
-                if counts:
-                    store.add_unit(
-                        self.core.sequence,
-                        COUNTS_UNIT,
-                        [],
-                        (),
-                        {
-                            method: MatchCounts(0, c.unmatched, c.dropped, c.failed)
-                            for method, c in counts.items()
-                        },
-                    )
+                self._book_counts(closing=True)
             summary = self.core.finish()
         if summary is not None:
             self.publish_groups(summary)
             self.groups_writer.wait_for_acks(ack_timeout_s)
         return summary
+
+    def _book_counts(self, *, closing: bool) -> None:
+        """The evaluator's counts and problems of the current sequence (under the lock)."""
+        counts, messages = self._ledger.checkpoint(closing=closing)
+        problems = [*self._problems, *((None, None, text) for text in messages)]
+        self._problems = []
+        self.core.add_counts(counts, problems)
 
     def status(self) -> dict[str, Any]:
         """Counters for a status line."""
