@@ -227,3 +227,14 @@ def test_partition_matches_reference_on_real_scenes(shared_data: Path) -> None:
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (5, 1)])
 def test_partition_matches_reference_on_tiny_maps(shape: tuple[int, int]) -> None:
     assert_same_partition(np.arange(1, shape[0] * shape[1] + 1, dtype=np.float32).reshape(shape))
+
+
+def test_partition_matches_reference_when_lloyd_crosses_many_bins() -> None:
+    # One far outlier puts the bulk in the first bins: the thresholds start far from their
+    # fixpoint and cross hundreds of bins (the kernel copies the bins it splits again).
+    rng = np.random.default_rng(3)
+    for extra in ([], [3.0] * 50, list(rng.uniform(200, 300, 80))):
+        values = np.concatenate([rng.uniform(1, 2, 600), extra, [1e6, 2e5]]).astype(np.float32)
+        gt = np.zeros(32 * 32, np.float32)
+        gt[: values.size] = values
+        assert_same_partition(gt.reshape(32, 32))

@@ -142,16 +142,27 @@ def discontinuities(
 
     Only jumps between two valid points count, so the border of unknown GT is no boundary.
     """
-    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
-    kernels.jump_mask(
+    return _dilated(_jumps(gt, valid, gap)[0], width)
+
+
+def _jumps(gt: np.ndarray, valid: np.ndarray, gap: float) -> tuple[np.ndarray, int]:
+    """Both ends of every 4-neighbour jump, and the number of connected points (one pass)."""
+    jumps = np.empty(gt.shape, dtype=np.bool_)
+    connected = kernels.jump_marks(
         np.ascontiguousarray(gt, dtype=np.float32),
         np.ascontiguousarray(valid, dtype=np.bool_),
         float(gap),
         jumps,
+        np.empty((4, gt.shape[1]), dtype=np.bool_),
     )
-    if width > 1:
-        jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
-    return jumps.astype(bool)
+    return jumps, int(connected)
+
+
+def _dilated(jumps: np.ndarray, width: int) -> np.ndarray:
+    """``jumps`` dilated by a ``width``-square (OpenCV on the same bytes viewed as 0/1)."""
+    if width <= 1:
+        return jumps
+    return cv2.dilate(jumps.view(np.uint8), np.ones((width, width), np.uint8)).view(np.bool_)
 
 
 BOUNDARY_MODES = ("auto", "dense", "sparse")
@@ -169,8 +180,7 @@ def is_sparse(valid: np.ndarray) -> bool:
     Maps one pixel high or wide, or with fewer than :data:`SPARSE_MIN_POINTS` valid points,
     are never sparse (the 4-neighbour rule is then kept).
     """
-    count = int(valid.sum())
-    if count < SPARSE_MIN_POINTS or min(valid.shape) < 2:
+    if not _may_be_sparse(valid):
         return False
     vertical = np.zeros(valid.shape, bool)
     vertical[1:] |= valid[:-1]
@@ -178,8 +188,17 @@ def is_sparse(valid: np.ndarray) -> bool:
     horizontal = np.zeros(valid.shape, bool)
     horizontal[:, 1:] |= valid[:, :-1]
     horizontal[:, :-1] |= valid[:, 1:]
-    connected = int((valid & vertical & horizontal).sum())
-    return connected < SPARSE_CONNECTED_SHARE * count
+    return _sparse_share(valid, int((valid & vertical & horizontal).sum()))
+
+
+def _may_be_sparse(valid: np.ndarray) -> bool:
+    return min(valid.shape) >= 2 and int(np.count_nonzero(valid)) >= SPARSE_MIN_POINTS
+
+
+def _sparse_share(valid: np.ndarray, connected: int) -> bool:
+    """The rule of :func:`is_sparse` given the number of connected valid points."""
+    share = SPARSE_CONNECTED_SHARE * int(np.count_nonzero(valid))
+    return _may_be_sparse(valid) and connected < share
 
 
 def sparse_discontinuities(
@@ -188,9 +207,17 @@ def sparse_discontinuities(
     """Valid points with a valid point in their ``width``-square differing by more than ``gap``.
 
     The boundary of sparse GT (LiDAR): 4-neighbour jumps need neighbours a scan rarely has.
+    The square is centred on the point (``width // 2`` each side). Such a neighbour exists
+    exactly when the square's largest valid value exceeds ``d`` by more than ``gap`` or its
+    smallest falls short by more (float32 differences are monotonic): a max and a min filter.
     """
     gt32 = np.ascontiguousarray(gt, dtype=np.float32)
-    return kernels.sparse_jump_mask(gt32, valid, float(gap), int(width)).astype(bool)
+    side = 2 * (max(width, 1) // 2) + 1
+    square = np.ones((side, side), np.uint8)
+    highest = cv2.dilate(np.where(valid, gt32, np.float32(-np.inf)), square)
+    lowest = cv2.erode(np.where(valid, gt32, np.float32(np.inf)), square)
+    with np.errstate(invalid="ignore"):
+        return valid & ((highest - gt32 > gap) | (gt32 - lowest > gap))
 
 
 def visibility_set(
@@ -215,11 +242,16 @@ def visibility_set(
         _check_shape("the 'disc' mask", disc, gt)
         near_jump = disc.astype(bool, copy=False)
         source += ", official disc mask"
-    elif boundary_mode == "sparse" or (boundary_mode == "auto" and is_sparse(valid)):
+    elif boundary_mode == "sparse":
         near_jump = sparse_discontinuities(gt, valid, gap, width)
         source += ", sparse-GT boundary"
     else:
-        near_jump = discontinuities(gt, valid, gap, width)
+        jumps, connected = _jumps(gt, valid, gap)  # the sparse test comes from the same pass
+        if boundary_mode == "auto" and _sparse_share(valid, connected):
+            near_jump = sparse_discontinuities(gt, valid, gap, width)
+            source += ", sparse-GT boundary"
+        else:
+            near_jump = _dilated(jumps, width)
     labels = np.empty(gt.shape, np.int32)
     kernels.visibility_labels(
         _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
@@ -242,17 +274,17 @@ def kmeans_thresholds(
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     values = _flat(gt)
-    pixels = values.shape[0]
+    packed = np.empty(values.shape, dtype=values.dtype)
+    packed = packed[: kernels.pack_valid(values, _flat(valid, np.bool_), packed)]
     thresholds = np.empty(2)
     kernels.kmeans_three(
-        values,
-        _flat(valid, np.bool_),
+        packed,
+        float(packed.min()),  # numpy's vectorised min and max
+        float(packed.max()),
         max_iterations,
-        np.empty(pixels),
-        np.empty(pixels, dtype=np.int32),
-        np.empty(pixels),
-        np.zeros((4, _KMEANS_BINS + 1), dtype=np.int64),
-        np.empty((7, _KMEANS_BINS + 1)),
+        np.empty(_KMEANS_BINS + 1, dtype=np.int64),
+        np.empty((8, _KMEANS_BINS + 1)),
+        np.empty(packed.shape[0]),
         thresholds,
     )
     return float(thresholds[0]), float(thresholds[1])
@@ -393,13 +425,24 @@ class Partition:
 
 def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partition:
     """Combine criterion sets into cells (the product of their classes) over the valid points."""
+    return sorted_partition(valid, sets)[0]
+
+
+def sorted_partition(
+    valid: np.ndarray, sets: Sequence[CriterionSet], values: np.ndarray | None = None
+) -> tuple[Partition, np.ndarray]:
+    """:func:`build_partition` and ``values`` (float32, e.g. the GT) gathered in partition order.
+
+    One pass places the pixels and gathers the values; without ``values`` the second result
+    is empty.
+    """
     if not sets:
         raise ConfigurationError("no criterion set given; choose from " + ", ".join(CRITERION_SETS))
-    cells = np.zeros(valid.shape, np.int32)
+    labelled: list[tuple[np.ndarray, int]] = []  # (flat labels, stride) of sets with classes
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            kernels.add_labels(cells.reshape(-1), _flat(criterion_set.labels, np.int32), stride)
+            labelled.append((_flat(criterion_set.labels, np.int32), stride))
         stride *= criterion_set.classes
     n_cells = stride
     criteria: list[str] = []
@@ -423,12 +466,37 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
             if criterion_set.overlapping:
                 overlapping.append(name)
     flat_valid = _flat(valid, np.bool_)
+    while len(labelled) > 2:  # a third labelled set: fold the first two into one label image
+        (first, first_stride), (second, second_stride) = labelled[:2]
+        folded = first * first_stride + second * second_stride
+        labelled[:2] = [(folded.astype(np.int32), 1)]
+    if not labelled:
+        labelled.append((np.zeros(flat_valid.shape, np.int32), 0))
+    if len(labelled) == 1:
+        labelled.append((labelled[0][0], 0))
+    (first, first_stride), (second, second_stride) = labelled
+    cells = np.empty(valid.shape, np.int32)
     offsets = np.empty(n_cells + 1, dtype=np.int64)
-    order = np.empty(int(np.count_nonzero(flat_valid)), dtype=np.int32)
+    evaluated = int(np.count_nonzero(flat_valid))
+    order = np.empty(evaluated, dtype=np.int32)
+    flat_values = np.empty(0, np.float32) if values is None else _flat(values, np.float32)
+    sorted_values = np.empty(0 if values is None else evaluated, dtype=np.float32)
     lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
-    kernels.counting_order(cells.reshape(-1), flat_valid, lanes, offsets, order)
+    kernels.partition_cells(
+        flat_valid,
+        first,
+        first_stride,
+        second,
+        second_stride,
+        flat_values,
+        cells.reshape(-1),
+        lanes,
+        offsets,
+        order,
+        sorted_values,
+    )
     order = order[: offsets[-1]]  # all of it unless a set labelled a valid point negative
-    return Partition(
+    partition = Partition(
         cells=cells,
         criteria=tuple(criteria),
         membership=np.array(rows, dtype=bool),
@@ -437,6 +505,7 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
         overlapping=tuple(overlapping),
         sources=sources,
     )
+    return partition, sorted_values[: order.shape[0]]
 
 
 TEXTURE = ("textured", "textureless")

@@ -238,9 +238,7 @@ class Evaluator:
                 name, gt, valid, camera, bool_masks, right, roi, built
             )
         sets = [built[name] for name in self.criteria]
-        partition = crit.build_partition(valid, sets)
-        gt_sorted = np.empty(partition.order.shape, dtype=np.float32)  # valid GT: a plain gather
-        kernels.gather_estimate(gt.ravel(), partition.order, -math.inf, math.inf, False, gt_sorted)
+        partition, gt_sorted = crit.sorted_partition(valid, sets, gt)
         fb = camera.fb if camera else 1.0
         doffs = camera.doffs if camera else 0.0
         depth_offset = doffs + self.mu
