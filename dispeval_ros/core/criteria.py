@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -237,26 +238,46 @@ def visibility_set(
     ``boundary_mode``: ``dense`` (4-neighbour jumps dilated by ``width``), ``sparse``
     (:func:`sparse_discontinuities`) or ``auto`` (sparse when :func:`is_sparse`).
     """
-    occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
-    if disc is not None:
-        _check_shape("the 'disc' mask", disc, gt)
-        near_jump = disc.astype(bool, copy=False)
-        source += ", official disc mask"
-    elif boundary_mode == "sparse":
-        near_jump = sparse_discontinuities(gt, valid, gap, width)
-        source += ", sparse-GT boundary"
-    else:
-        jumps, connected = _jumps(gt, valid, gap)  # the sparse test comes from the same pass
-        if boundary_mode == "auto" and _sparse_share(valid, connected):
-            near_jump = sparse_discontinuities(gt, valid, gap, width)
-            source += ", sparse-GT boundary"
-        else:
-            near_jump = _dilated(jumps, width)
+    occluded, near_jump, source = _visibility_masks(
+        gt, valid, nonocc, disc, gt_right, gap, width, tolerance, boundary_mode
+    )
     labels = np.empty(gt.shape, np.int32)
     kernels.visibility_labels(
         _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
     )
     return _partitioning("visibility", labels, VISIBILITY, source)
+
+
+def _visibility_masks(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    nonocc: np.ndarray | None,
+    disc: np.ndarray | None,
+    gt_right: np.ndarray | None,
+    gap: float,
+    width: int,
+    tolerance: float,
+    boundary_mode: str,
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Occluded points, points near a discontinuity and where both came from."""
+    occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
+    if disc is not None:
+        _check_shape("the 'disc' mask", disc, gt)
+        return occluded, disc.astype(bool, copy=False), source + ", official disc mask"
+    if boundary_mode == "sparse":
+        return (
+            occluded,
+            sparse_discontinuities(gt, valid, gap, width),
+            source + ", sparse-GT boundary",
+        )
+    jumps, connected = _jumps(gt, valid, gap)  # the sparse test comes from the same pass
+    if boundary_mode == "auto" and _sparse_share(valid, connected):
+        return (
+            occluded,
+            sparse_discontinuities(gt, valid, gap, width),
+            source + ", sparse-GT boundary",
+        )
+    return occluded, _dilated(jumps, width), source
 
 
 def kmeans_thresholds(
@@ -310,7 +331,7 @@ def depth_set(
         low, high = kmeans_thresholds(gt, valid)
         labels = np.empty(gt.shape, np.int32)
         kernels.threshold_labels(_flat(gt), low, high, labels.reshape(-1))
-        return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
+        return _partitioning("depth", labels, DEPTH, _thresholds_text(low, high))
     if camera is None:
         raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")
     edges = _range_edges(ranges)
@@ -323,6 +344,10 @@ def depth_set(
     labels = np.searchsorted(edges, depth, side="right").astype(np.int32) - 1
     labels = np.clip(labels, 0, len(criteria) - 1)
     return _partitioning("depth", labels, criteria, "metric depth ranges")
+
+
+def _thresholds_text(low: float, high: float) -> str:
+    return f"3-means thresholds {low:.6g}, {high:.6g} px"
 
 
 def _range_edges(ranges: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -380,10 +405,23 @@ def legacy_set(visibility: CriterionSet) -> CriterionSet:
 
     Built on the visibility classes: occluded, boundary (= disc), interior.
     """
-    # classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
-    membership = np.array([[False, True, True], [True, True, True], [False, True, False]])
     return CriterionSet(
-        "legacy", visibility.labels, LEGACY, membership, overlapping=True, source=visibility.source
+        "legacy",
+        visibility.labels,
+        LEGACY,
+        _LEGACY_MEMBERSHIP,
+        overlapping=True,
+        source=visibility.source,
+    )
+
+
+# classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
+_LEGACY_MEMBERSHIP = np.array([[False, True, True], [True, True, True], [False, True, False]])
+
+
+def _legacy_layout(visibility: _SetLayout) -> _SetLayout:
+    return _Computed(
+        "legacy", LEGACY, _LEGACY_MEMBERSHIP, overlapping=True, source=visibility.source
     )
 
 
@@ -423,28 +461,148 @@ class Partition:
         return np.isin(self.cells, cells_in)
 
 
+class _SetLayout(Protocol):
+    """What a partition needs of a criterion set besides its classes per pixel."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def criteria(self) -> tuple[str, ...]: ...
+    @property
+    def membership(self) -> np.ndarray: ...
+    @property
+    def overlapping(self) -> bool: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def classes(self) -> int: ...
+
+
+@dataclass(frozen=True)
+class _Computed:
+    """A criterion set whose classes the partition kernel computes itself (no label image)."""
+
+    name: str
+    criteria: tuple[str, ...]
+    membership: np.ndarray
+    overlapping: bool = False
+    source: str = ""
+
+    @property
+    def classes(self) -> int:
+        return int(self.membership.shape[1])
+
+
 def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partition:
     """Combine criterion sets into cells (the product of their classes) over the valid points."""
-    return sorted_partition(valid, sets)[0]
-
-
-def sorted_partition(
-    valid: np.ndarray, sets: Sequence[CriterionSet], values: np.ndarray | None = None
-) -> tuple[Partition, np.ndarray]:
-    """:func:`build_partition` and ``values`` (float32, e.g. the GT) gathered in partition order.
-
-    One pass places the pixels and gathers the values; without ``values`` the second result
-    is empty.
-    """
     if not sets:
         raise ConfigurationError("no criterion set given; choose from " + ", ".join(CRITERION_SETS))
-    labelled: list[tuple[np.ndarray, int]] = []  # (flat labels, stride) of sets with classes
+    folded: np.ndarray | None = None  # the labels of every set with classes, as one image
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            labelled.append((_flat(criterion_set.labels, np.int32), stride))
+            labels = _flat(criterion_set.labels, np.int32)
+            term = labels if stride == 1 else labels * stride
+            folded = term if folded is None else folded + term  # new arrays: labels stay as given
         stride *= criterion_set.classes
-    n_cells = stride
+    flat_valid = _flat(valid, np.bool_)
+    cells = np.empty(valid.shape, np.int32)
+    unused = cells.reshape(-1).view(np.float32)  # stands in for the inputs with stride 0
+    return _partition(
+        valid,
+        sets,
+        cells,
+        (flat_valid, flat_valid, 0),
+        (unused, 0.0, 0.0, 0),
+        (cells.reshape(-1), 0) if folded is None else (folded.astype(np.int32, copy=False), 1),
+        None,
+    )[0]
+
+
+def standard_partition(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    names: Sequence[str],
+    *,
+    nonocc: np.ndarray | None = None,
+    disc: np.ndarray | None = None,
+    gt_right: np.ndarray | None = None,
+    gap: float = 2.0,
+    width: int = 9,
+    tolerance: float = 1.0,
+    boundary_mode: str = "auto",
+) -> tuple[Partition, np.ndarray]:
+    """The partition of standard criterion sets and the GT in partition order (float32).
+
+    Sets ``all``, ``visibility``, ``legacy`` and ``depth`` by 3-means, in the order of
+    ``names``: the partition :func:`build_partition` makes of :func:`all_set`,
+    :func:`visibility_set`, :func:`legacy_set` and :func:`depth_set`, but the kernel computes
+    both classes per pixel while it builds the cells (no label images).
+    """
+    unknown = set(names) - set(STANDARD_SETS)
+    if unknown or not names:
+        raise ConfigurationError(f"no standard criterion sets: {', '.join(names)}")
+    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
+    cells = np.empty(gt.shape, np.int32)
+    occluded = near_jump = valid
+    visibility: _Computed | None = None
+    low = high = 0.0
+    visibility_stride = depth_stride = 0
+    layouts: list[_SetLayout] = []
+    stride = 1
+    for name in names:
+        if name == "all":
+            layouts.append(_Computed("all", ("all",), np.eye(1, dtype=bool), source="valid GT"))
+        elif name == "depth":
+            low, high = kmeans_thresholds(gt32, valid)
+            depth = _Computed(
+                "depth", DEPTH, np.eye(3, dtype=bool), source=_thresholds_text(low, high)
+            )
+            layouts.append(depth)
+            depth_stride = stride
+        else:
+            if visibility is None:
+                occluded, near_jump, source = _visibility_masks(
+                    gt32, valid, nonocc, disc, gt_right, gap, width, tolerance, boundary_mode
+                )
+                visibility = _Computed(
+                    "visibility", VISIBILITY, np.eye(3, dtype=bool), source=source
+                )
+            layouts.append(visibility if name == "visibility" else _legacy_layout(visibility))
+            visibility_stride += stride
+        stride *= layouts[-1].classes
+    return _partition(
+        valid,
+        layouts,
+        cells,
+        (_flat(occluded, np.bool_), _flat(near_jump, np.bool_), visibility_stride),
+        (gt32.reshape(-1), low, high, depth_stride),
+        (cells.reshape(-1), 0),
+        gt32.reshape(-1),
+    )
+
+
+STANDARD_SETS = ("all", "visibility", "legacy", "depth")
+"""The sets :func:`standard_partition` builds (``depth``: by 3-means)."""
+
+
+def _partition(
+    valid: np.ndarray,
+    sets: Sequence[_SetLayout],
+    cells: np.ndarray,
+    visibility: tuple[np.ndarray, np.ndarray, int],
+    depth: tuple[np.ndarray, float, float, int],
+    labels: tuple[np.ndarray, int],
+    values: np.ndarray | None,
+) -> tuple[Partition, np.ndarray]:
+    """Cells, order and the values in partition order (empty without ``values``) from one kernel.
+
+    ``visibility``: occluded, near-jump masks and stride; ``depth``: values, thresholds and
+    stride; ``labels``: a label image and its stride (strides 0: unused).
+    """
+    n_cells = 1
+    for criterion_set in sets:
+        n_cells *= criterion_set.classes
     criteria: list[str] = []
     rows: list[np.ndarray] = []
     overlapping: list[str] = []
@@ -466,31 +624,26 @@ def sorted_partition(
             if criterion_set.overlapping:
                 overlapping.append(name)
     flat_valid = _flat(valid, np.bool_)
-    while len(labelled) > 2:  # a third labelled set: fold the first two into one label image
-        (first, first_stride), (second, second_stride) = labelled[:2]
-        folded = first * first_stride + second * second_stride
-        labelled[:2] = [(folded.astype(np.int32), 1)]
-    if not labelled:
-        labelled.append((np.zeros(flat_valid.shape, np.int32), 0))
-    if len(labelled) == 1:
-        labelled.append((labelled[0][0], 0))
-    (first, first_stride), (second, second_stride) = labelled
-    cells = np.empty(valid.shape, np.int32)
     offsets = np.empty(n_cells + 1, dtype=np.int64)
     evaluated = int(np.count_nonzero(flat_valid))
     order = np.empty(evaluated, dtype=np.int32)
-    flat_values = np.empty(0, np.float32) if values is None else _flat(values, np.float32)
     sorted_values = np.empty(0 if values is None else evaluated, dtype=np.float32)
-    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
+    occluded, near_jump, visibility_stride = visibility
+    depth_values, low, high, depth_stride = depth
+    label_image, labels_stride = labels
     kernels.partition_cells(
         flat_valid,
-        first,
-        first_stride,
-        second,
-        second_stride,
-        flat_values,
+        occluded,
+        near_jump,
+        visibility_stride,
+        depth_values,
+        low,
+        high,
+        depth_stride,
+        label_image,
+        labels_stride,
         cells.reshape(-1),
-        lanes,
+        np.zeros((4, n_cells + 1), dtype=np.int64),
         offsets,
         order,
         sorted_values,

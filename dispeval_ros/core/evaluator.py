@@ -232,13 +232,32 @@ class Evaluator:
                 "the ground truth has no valid point (every value is NaN, inf or ≤ 0"
                 + (" inside the 'all' mask)" if "all" in bool_masks else ")")
             )
-        built: dict[str, crit.CriterionSet] = {}
-        for name in self.criteria:
-            built[name] = self._criterion_set(
-                name, gt, valid, camera, bool_masks, right, roi, built
+        if set(self.criteria) <= set(crit.STANDARD_SETS) and not (
+            "depth" in self.criteria and self.depth_ranges
+        ):
+            partition, gt_sorted = crit.standard_partition(
+                gt,
+                valid,
+                self.criteria,
+                nonocc=bool_masks.get("nonocc"),
+                disc=bool_masks.get("disc"),
+                gt_right=right,
+                gap=self.boundary_gap,
+                width=self.boundary_width,
+                tolerance=self.occlusion_tolerance,
+                boundary_mode=self.boundary_mode,
             )
-        sets = [built[name] for name in self.criteria]
-        partition, gt_sorted = crit.sorted_partition(valid, sets, gt)
+        else:
+            built: dict[str, crit.CriterionSet] = {}
+            for name in self.criteria:
+                built[name] = self._criterion_set(
+                    name, gt, valid, camera, bool_masks, right, roi, built
+                )
+            partition = crit.build_partition(valid, [built[name] for name in self.criteria])
+            gt_sorted = np.empty(partition.order.shape, dtype=np.float32)  # a plain gather
+            kernels.gather_estimate(
+                gt.ravel(), partition.order, -math.inf, math.inf, False, gt_sorted
+            )
         fb = camera.fb if camera else 1.0
         doffs = camera.doffs if camera else 0.0
         depth_offset = doffs + self.mu

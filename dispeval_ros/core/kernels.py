@@ -376,31 +376,46 @@ def visibility_labels(
 @njit(cache=True, nogil=True)
 def partition_cells(
     flat_valid: np.ndarray,
-    first: np.ndarray,
-    first_stride: int,
-    second: np.ndarray,
-    second_stride: int,
+    flat_occluded: np.ndarray,
+    flat_near_jump: np.ndarray,
+    visibility_stride: int,
     flat_values: np.ndarray,
+    low: float,
+    high: float,
+    depth_stride: int,
+    flat_labels: np.ndarray,
+    labels_stride: int,
     flat_cells: np.ndarray,
     lanes: np.ndarray,
     offsets: np.ndarray,
     order: np.ndarray,
     sorted_values: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Cells of two label images, the evaluated pixels sorted by cell and their values gathered.
+    """The cell of every pixel, the evaluated pixels sorted by cell and their values gathered.
 
-    ``cells = first · first_stride + second · second_stride`` at valid pixels, ``-1``
-    elsewhere; then a stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell
-    ``c``'s pixels and ``sorted_values`` holds ``flat_values`` in that order (skipped when it
-    is empty). The caller allocates (kernels that allocate and return arrays take twice as
-    long to compile): ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``,
-    ``order`` and ``sorted_values`` one entry per valid pixel.
+    A valid pixel's cell is ``visibility · visibility_stride + depth · depth_stride + label ·
+    labels_stride`` with the visibility class (0 occluded, else 1 near a jump, else 2) and the
+    depth class (0 above ``high``, 1 in ``(low, high]``, 2 otherwise) computed here, and
+    ``label`` from a label image (several criterion sets folded into one); ``-1`` elsewhere.
+    An input whose stride is 0 is not used (any array of the right type will do; for the labels
+    even ``flat_cells``).
+    Then a stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s
+    pixels, and ``sorted_values`` (unless empty) ``flat_values`` in that order. The caller
+    allocates (kernels that allocate and return arrays take twice as long to compile):
+    ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` and
+    ``sorted_values`` one entry per valid pixel.
     """
     n_cells = offsets.shape[0] - 1
     pixels = flat_cells.shape[0]
-    for i in range(pixels):  # vectorised
-        c = first[i] * first_stride + second[i] * second_stride
+    for i in range(pixels):  # branch-free: vectorised
+        visibility = 0 if flat_occluded[i] else (1 if flat_near_jump[i] else 2)
+        v = flat_values[i]
+        depth = 0 if v > high else (1 if v > low else 2)
+        c = visibility * visibility_stride + depth * depth_stride
         flat_cells[i] = c if flat_valid[i] else -1
+    if labels_stride != 0:  # a loop of its own: ``flat_labels`` may be ``flat_cells`` otherwise
+        for i in range(pixels):
+            flat_cells[i] += flat_labels[i] * labels_stride if flat_valid[i] else 0
     for i in range(pixels):
         lanes[i & 3, flat_cells[i] + 1] += 1  # interleaved counters: no chained increments
     offsets[0] = 0
@@ -516,12 +531,6 @@ def kmeans_three(
             cw[b + 1] = cw[b] + kept_counts[b]
             cs[b + 1] = cs[b] + kept_sums[b]
             cq[b + 1] = cq[b] + kept_squares[b]
-        last = kept_counts  # free now: the error of the last cluster [j, occupied)
-        for j in range(occupied + 1):
-            n2 = cw[occupied] - cw[j]
-            s2 = cs[occupied] - cs[j]
-            last[j] = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
-        total = kept_sums  # the errors of one row of cut pairs, computed before the search
         best = np.inf
         best_i = 1
         best_j = 2
@@ -530,12 +539,14 @@ def kmeans_three(
             sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
             for j in range(i + 1, occupied):
                 n1 = cw[j] - n0
+                n2 = cw[occupied] - cw[j]
                 s1 = cs[j] - cs[i]
+                s2 = cs[occupied] - cs[j]
                 sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
-                total[j] = sse0 + sse1 + last[j]
-            for j in range(i + 1, occupied):
-                if total[j] < best:
-                    best = total[j]
+                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
+                total = sse0 + sse1 + sse2
+                if total < best:
+                    best = total
                     best_i = i
                     best_j = j
         c0 = cs[best_i] / cw[best_i]
