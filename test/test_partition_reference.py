@@ -238,3 +238,40 @@ def test_partition_matches_reference_when_lloyd_crosses_many_bins() -> None:
         gt = np.zeros(32 * 32, np.float32)
         gt[: values.size] = values
         assert_same_partition(gt.reshape(32, 32))
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        ("all",),
+        ("depth",),
+        ("visibility", "depth"),
+        ("depth", "all", "visibility"),
+        ("visibility", "legacy"),
+        ("legacy", "depth", "visibility"),
+    ],
+)
+def test_standard_partition_is_build_partition_of_the_sets(names: tuple[str, ...]) -> None:
+    rng = np.random.default_rng(5)
+    gt = (np.linspace(5.0, 60.0, 80)[None, :] + rng.normal(0, 0.5, (50, 80))).astype(np.float32)
+    gt[rng.random(gt.shape) < 0.1] = np.nan
+    nonocc = rng.random(gt.shape) < 0.9
+    for masks in ({}, {"nonocc": nonocc}):
+        valid = criteria.valid_ground_truth(gt)
+        visibility = criteria.visibility_set(gt, valid, nonocc=masks.get("nonocc"))
+        made = {
+            "all": criteria.all_set(valid),
+            "visibility": visibility,
+            "legacy": criteria.legacy_set(visibility),
+            "depth": criteria.depth_set(gt, valid),
+        }
+        expected = criteria.build_partition(valid, [made[name] for name in names])
+        ours, gt_sorted = criteria.standard_partition(gt, valid, names, nonocc=masks.get("nonocc"))
+        for field in ("cells", "order", "offsets", "membership"):
+            np.testing.assert_array_equal(getattr(ours, field), getattr(expected, field))
+        assert (ours.criteria, ours.overlapping, dict(ours.sources)) == (
+            expected.criteria,
+            expected.overlapping,
+            dict(expected.sources),
+        )
+        np.testing.assert_array_equal(gt_sorted, gt.ravel()[expected.order])
