@@ -154,7 +154,7 @@ def _jumps(gt: np.ndarray, valid: np.ndarray, gap: float) -> tuple[np.ndarray, i
         np.ascontiguousarray(valid, dtype=np.bool_),
         float(gap),
         jumps,
-        np.empty((4, gt.shape[1]), dtype=np.bool_),
+        np.empty((5, gt.shape[1] + 1), dtype=np.bool_),
     )
     return jumps, int(connected)
 

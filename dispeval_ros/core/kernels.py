@@ -668,36 +668,32 @@ def jump_marks(
     Writes every pixel of ``jumps`` (bool). Returns how many valid points have a valid
     neighbour both vertically and horizontally (the sparse-GT statistic of
     ``criteria.is_sparse``), from the same pass. Branch-free rows; ``rows`` is bool scratch
-    ``(4, width)``.
+    ``(5, width + 1)``: entry ``x + 1`` of the pair rows is about columns ``x`` and ``x + 1``.
     """
     height, width = gt.shape
-    across = rows[0]  # jump between x and x + 1 in this row
-    down = rows[1]  # jump between this row and the next
-    above = rows[2]  # ``down`` of the previous row
-    nothing = rows[3]
-    for x in range(width):
-        across[x] = False
-        above[x] = False
-        nothing[x] = False
+    across = rows[0]  # a jump between columns x and x + 1 (at x + 1)
+    pairs = rows[1]  # both columns x and x + 1 valid (at x + 1)
+    down = rows[2]  # a jump between this row and the next
+    above = rows[3]  # ``down`` of the previous row
+    nothing = rows[4]
+    for x in range(width + 1):
+        across[x] = pairs[x] = above[x] = nothing[x] = False
     connected = 0
     for y in range(height):
         row = gt[y]
         ok = valid[y]
         for x in range(width - 1):
-            across[x] = ok[x] & ok[x + 1] & (abs(row[x] - row[x + 1]) > gap)
+            pair = ok[x] & ok[x + 1]
+            pairs[x + 1] = pair
+            across[x + 1] = pair & (abs(row[x] - row[x + 1]) > gap)
         up = valid[y - 1] if y > 0 else nothing
         ok_below = valid[y + 1] if y + 1 < height else nothing
         below = gt[y + 1] if y + 1 < height else row
         for x in range(width):
             down[x] = ok[x] & ok_below[x] & (abs(row[x] - below[x]) > gap)
         out = jumps[y]
-        out[0] = across[0] | down[0] | above[0]
-        for x in range(1, width):
-            out[x] = across[x] | across[x - 1] | down[x] | above[x]
-        if width > 1:
-            connected += ok[0] & (up[0] | ok_below[0]) & ok[1]
-            connected += ok[width - 1] & (up[width - 1] | ok_below[width - 1]) & ok[width - 2]
-        for x in range(1, width - 1):
-            connected += ok[x] & (up[x] | ok_below[x]) & (ok[x - 1] | ok[x + 1])
+        for x in range(width):
+            out[x] = across[x] | across[x + 1] | down[x] | above[x]
+            connected += (pairs[x] | pairs[x + 1]) & (up[x] | ok_below[x])
         above, down = down, above
     return connected
