@@ -266,7 +266,8 @@ def test_standard_partition_is_build_partition_of_the_sets(names: tuple[str, ...
             "depth": criteria.depth_set(gt, valid),
         }
         expected = criteria.build_partition(valid, [made[name] for name in names])
-        ours, gt_sorted = criteria.standard_partition(gt, valid, names, nonocc=masks.get("nonocc"))
+        options = criteria.VisibilityOptions(nonocc=masks.get("nonocc"))
+        ours, gt_sorted = criteria.standard_partition(gt, valid, names, options)
         for field in ("cells", "order", "offsets", "membership"):
             np.testing.assert_array_equal(getattr(ours, field), getattr(expected, field))
         assert (ours.criteria, ours.overlapping, dict(ours.sources)) == (

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import cv2
 import numpy as np
@@ -238,9 +237,8 @@ def visibility_set(
     ``boundary_mode``: ``dense`` (4-neighbour jumps dilated by ``width``), ``sparse``
     (:func:`sparse_discontinuities`) or ``auto`` (sparse when :func:`is_sparse`).
     """
-    occluded, near_jump, source = _visibility_masks(
-        gt, valid, nonocc, disc, gt_right, gap, width, tolerance, boundary_mode
-    )
+    options = VisibilityOptions(nonocc, disc, gt_right, gap, width, tolerance, boundary_mode)
+    occluded, near_jump, source = _visibility_masks(gt, valid, options)
     labels = np.empty(gt.shape, np.int32)
     kernels.visibility_labels(
         _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
@@ -248,35 +246,36 @@ def visibility_set(
     return _partitioning("visibility", labels, VISIBILITY, source)
 
 
+@dataclass(frozen=True)
+class VisibilityOptions:
+    """How the ``visibility`` classes are found (see :func:`visibility_set`)."""
+
+    nonocc: np.ndarray | None = None
+    disc: np.ndarray | None = None
+    gt_right: np.ndarray | None = None
+    gap: float = 2.0
+    width: int = 9
+    tolerance: float = 1.0
+    boundary_mode: str = "auto"
+
+
 def _visibility_masks(
-    gt: np.ndarray,
-    valid: np.ndarray,
-    nonocc: np.ndarray | None,
-    disc: np.ndarray | None,
-    gt_right: np.ndarray | None,
-    gap: float,
-    width: int,
-    tolerance: float,
-    boundary_mode: str,
+    gt: np.ndarray, valid: np.ndarray, options: VisibilityOptions
 ) -> tuple[np.ndarray, np.ndarray, str]:
     """Occluded points, points near a discontinuity and where both came from."""
-    occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
+    nonocc, disc, gap, width = options.nonocc, options.disc, options.gap, options.width
+    occluded, source = occlusion(
+        gt, valid, nonocc=nonocc, gt_right=options.gt_right, tolerance=options.tolerance
+    )
     if disc is not None:
         _check_shape("the 'disc' mask", disc, gt)
         return occluded, disc.astype(bool, copy=False), source + ", official disc mask"
-    if boundary_mode == "sparse":
-        return (
-            occluded,
-            sparse_discontinuities(gt, valid, gap, width),
-            source + ", sparse-GT boundary",
-        )
+    sparse_boundary = source + ", sparse-GT boundary"
+    if options.boundary_mode == "sparse":
+        return occluded, sparse_discontinuities(gt, valid, gap, width), sparse_boundary
     jumps, connected = _jumps(gt, valid, gap)  # the sparse test comes from the same pass
-    if boundary_mode == "auto" and _sparse_share(valid, connected):
-        return (
-            occluded,
-            sparse_discontinuities(gt, valid, gap, width),
-            source + ", sparse-GT boundary",
-        )
+    if options.boundary_mode == "auto" and _sparse_share(valid, connected):
+        return occluded, sparse_discontinuities(gt, valid, gap, width), sparse_boundary
     return occluded, _dilated(jumps, width), source
 
 
@@ -419,10 +418,8 @@ def legacy_set(visibility: CriterionSet) -> CriterionSet:
 _LEGACY_MEMBERSHIP = np.array([[False, True, True], [True, True, True], [False, True, False]])
 
 
-def _legacy_layout(visibility: _SetLayout) -> _SetLayout:
-    return _Computed(
-        "legacy", LEGACY, _LEGACY_MEMBERSHIP, overlapping=True, source=visibility.source
-    )
+def _legacy_layout(visibility: CriterionSet) -> CriterionSet:
+    return _layout("legacy", LEGACY, _LEGACY_MEMBERSHIP, overlapping=True, source=visibility.source)
 
 
 @dataclass(frozen=True)
@@ -461,36 +458,22 @@ class Partition:
         return np.isin(self.cells, cells_in)
 
 
-class _SetLayout(Protocol):
-    """What a partition needs of a criterion set besides its classes per pixel."""
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def criteria(self) -> tuple[str, ...]: ...
-    @property
-    def membership(self) -> np.ndarray: ...
-    @property
-    def overlapping(self) -> bool: ...
-    @property
-    def source(self) -> str: ...
-    @property
-    def classes(self) -> int: ...
+_NO_LABELS = np.empty((0, 0), np.int32)
 
 
-@dataclass(frozen=True)
-class _Computed:
-    """A criterion set whose classes the partition kernel computes itself (no label image)."""
+def _layout(
+    name: str,
+    criteria: tuple[str, ...],
+    membership: np.ndarray,
+    *,
+    overlapping: bool = False,
+    source: str = "",
+) -> CriterionSet:
+    """A criterion set without its label image, for :func:`standard_partition` only.
 
-    name: str
-    criteria: tuple[str, ...]
-    membership: np.ndarray
-    overlapping: bool = False
-    source: str = ""
-
-    @property
-    def classes(self) -> int:
-        return int(self.membership.shape[1])
+    The partition kernel computes the classes of such a set itself.
+    """
+    return CriterionSet(name, _NO_LABELS, criteria, membership, overlapping, source)
 
 
 def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partition:
@@ -523,14 +506,7 @@ def standard_partition(
     gt: np.ndarray,
     valid: np.ndarray,
     names: Sequence[str],
-    *,
-    nonocc: np.ndarray | None = None,
-    disc: np.ndarray | None = None,
-    gt_right: np.ndarray | None = None,
-    gap: float = 2.0,
-    width: int = 9,
-    tolerance: float = 1.0,
-    boundary_mode: str = "auto",
+    options: VisibilityOptions | None = None,
 ) -> tuple[Partition, np.ndarray]:
     """The partition of standard criterion sets and the GT in partition order (float32).
 
@@ -545,17 +521,17 @@ def standard_partition(
     gt32 = np.ascontiguousarray(gt, dtype=np.float32)
     cells = np.empty(gt.shape, np.int32)
     occluded = near_jump = valid
-    visibility: _Computed | None = None
+    visibility: CriterionSet | None = None
     low = high = 0.0
     visibility_stride = depth_stride = 0
-    layouts: list[_SetLayout] = []
+    layouts: list[CriterionSet] = []
     stride = 1
     for name in names:
         if name == "all":
-            layouts.append(_Computed("all", ("all",), np.eye(1, dtype=bool), source="valid GT"))
+            layouts.append(_layout("all", ("all",), np.eye(1, dtype=bool), source="valid GT"))
         elif name == "depth":
             low, high = kmeans_thresholds(gt32, valid)
-            depth = _Computed(
+            depth = _layout(
                 "depth", DEPTH, np.eye(3, dtype=bool), source=_thresholds_text(low, high)
             )
             layouts.append(depth)
@@ -563,11 +539,9 @@ def standard_partition(
         else:
             if visibility is None:
                 occluded, near_jump, source = _visibility_masks(
-                    gt32, valid, nonocc, disc, gt_right, gap, width, tolerance, boundary_mode
+                    gt32, valid, options or VisibilityOptions()
                 )
-                visibility = _Computed(
-                    "visibility", VISIBILITY, np.eye(3, dtype=bool), source=source
-                )
+                visibility = _layout("visibility", VISIBILITY, np.eye(3, dtype=bool), source=source)
             layouts.append(visibility if name == "visibility" else _legacy_layout(visibility))
             visibility_stride += stride
         stride *= layouts[-1].classes
@@ -588,7 +562,7 @@ STANDARD_SETS = ("all", "visibility", "legacy", "depth")
 
 def _partition(
     valid: np.ndarray,
-    sets: Sequence[_SetLayout],
+    sets: Sequence[CriterionSet],
     cells: np.ndarray,
     visibility: tuple[np.ndarray, np.ndarray, int],
     depth: tuple[np.ndarray, float, float, int],

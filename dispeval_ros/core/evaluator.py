@@ -236,16 +236,7 @@ class Evaluator:
             "depth" in self.criteria and self.depth_ranges
         ):
             partition, gt_sorted = crit.standard_partition(
-                gt,
-                valid,
-                self.criteria,
-                nonocc=bool_masks.get("nonocc"),
-                disc=bool_masks.get("disc"),
-                gt_right=right,
-                gap=self.boundary_gap,
-                width=self.boundary_width,
-                tolerance=self.occlusion_tolerance,
-                boundary_mode=self.boundary_mode,
+                gt, valid, self.criteria, self._visibility_options(bool_masks, right)
             )
         else:
             built: dict[str, crit.CriterionSet] = {}
@@ -296,15 +287,7 @@ class Evaluator:
             return crit.all_set(valid)
         if name in ("visibility", "legacy"):
             visibility = built.get("visibility") or crit.visibility_set(
-                gt,
-                valid,
-                nonocc=masks.get("nonocc"),
-                disc=masks.get("disc"),
-                gt_right=gt_right,
-                gap=self.boundary_gap,
-                width=self.boundary_width,
-                tolerance=self.occlusion_tolerance,
-                boundary_mode=self.boundary_mode,
+                gt, valid, **vars(self._visibility_options(masks, gt_right))
             )
             return visibility if name == "visibility" else crit.legacy_set(visibility)
         if name == "depth":
@@ -314,6 +297,20 @@ class Evaluator:
                 "the 'roi' criterion set needs a region-of-interest mask or label image"
             )
         return crit.roi_set(valid, np.asarray(roi), self.roi_names)
+
+    def _visibility_options(
+        self, masks: Mapping[str, np.ndarray], gt_right: np.ndarray | None
+    ) -> crit.VisibilityOptions:
+        """How this evaluator finds the visibility classes, given the official masks."""
+        return crit.VisibilityOptions(
+            nonocc=masks.get("nonocc"),
+            disc=masks.get("disc"),
+            gt_right=gt_right,
+            gap=self.boundary_gap,
+            width=self.boundary_width,
+            tolerance=self.occlusion_tolerance,
+            boundary_mode=self.boundary_mode,
+        )
 
     def _cached_reference(
         self,
