@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from dispeval_ros import Evaluator
+from dispeval_ros import Camera, Evaluator
 from dispeval_ros.core import criteria
 from dispeval_ros.core.criteria import is_sparse
 from dispeval_ros.errors import DispevalError
@@ -268,11 +268,27 @@ def test_standard_partition_is_build_partition_of_the_sets(names: tuple[str, ...
         expected = criteria.build_partition(valid, [made[name] for name in names])
         options = criteria.VisibilityOptions(nonocc=masks.get("nonocc"))
         ours, gt_sorted = criteria.standard_partition(gt, valid, names, options)
-        for field in ("cells", "order", "offsets", "membership"):
-            np.testing.assert_array_equal(getattr(ours, field), getattr(expected, field))
-        assert (ours.criteria, ours.overlapping, dict(ours.sources)) == (
-            expected.criteria,
-            expected.overlapping,
-            dict(expected.sources),
-        )
+        assert_same_layout(ours, expected)
         np.testing.assert_array_equal(gt_sorted, gt.ravel()[expected.order])
+        # metric depth ranges: the depth classes come as a label image
+        camera = Camera(f=700.0, baseline=0.5)
+        made["depth"] = criteria.depth_set(gt, valid, camera=camera, ranges=RANGES)
+        expected = criteria.build_partition(valid, [made[name] for name in names])
+        ours, _ = criteria.standard_partition(
+            gt, valid, names, options, camera=camera, depth_ranges=RANGES
+        )
+        assert_same_layout(ours, expected)
+
+
+RANGES = ((0.0, 8.0), (8.0, 20.0), (20.0, float("inf")))
+
+
+def assert_same_layout(ours: criteria.Partition, expected: criteria.Partition) -> None:
+    """Same cells, order, offsets, criteria, membership, overlapping criteria and sources."""
+    for field in ("cells", "order", "offsets", "membership"):
+        np.testing.assert_array_equal(getattr(ours, field), getattr(expected, field))
+    assert (ours.criteria, ours.overlapping, dict(ours.sources)) == (
+        expected.criteria,
+        expected.overlapping,
+        dict(expected.sources),
+    )

@@ -507,13 +507,17 @@ def standard_partition(
     valid: np.ndarray,
     names: Sequence[str],
     options: VisibilityOptions | None = None,
+    *,
+    camera: Camera | None = None,
+    depth_ranges: Sequence[tuple[float, float]] | None = None,
 ) -> tuple[Partition, np.ndarray]:
     """The partition of standard criterion sets and the GT in partition order (float32).
 
-    Sets ``all``, ``visibility``, ``legacy`` and ``depth`` by 3-means, in the order of
-    ``names``: the partition :func:`build_partition` makes of :func:`all_set`,
-    :func:`visibility_set`, :func:`legacy_set` and :func:`depth_set`, but the kernel computes
-    both classes per pixel while it builds the cells (no label images).
+    Sets ``all``, ``visibility``, ``legacy`` and ``depth`` (3-means, or ``depth_ranges`` with
+    a ``camera``) in the order of ``names``: the partition :func:`build_partition` makes of
+    :func:`all_set`, :func:`visibility_set`, :func:`legacy_set` and :func:`depth_set`, but the
+    kernel computes the visibility and 3-means classes per pixel while it builds the cells
+    (no label images).
     """
     unknown = set(names) - set(STANDARD_SETS)
     if unknown or not names:
@@ -524,11 +528,15 @@ def standard_partition(
     visibility: CriterionSet | None = None
     low = high = 0.0
     visibility_stride = depth_stride = 0
+    labels = (cells.reshape(-1), 0)  # a label image and its stride: depth by ranges
     layouts: list[CriterionSet] = []
     stride = 1
     for name in names:
         if name == "all":
             layouts.append(_layout("all", ("all",), np.eye(1, dtype=bool), source="valid GT"))
+        elif name == "depth" and depth_ranges:
+            layouts.append(depth_set(gt32, valid, camera=camera, ranges=depth_ranges))
+            labels = (_flat(layouts[-1].labels, np.int32), stride)
         elif name == "depth":
             low, high = kmeans_thresholds(gt32, valid)
             depth = _layout(
@@ -551,7 +559,7 @@ def standard_partition(
         cells,
         (_flat(occluded, np.bool_), _flat(near_jump, np.bool_), visibility_stride),
         (gt32.reshape(-1), low, high, depth_stride),
-        (cells.reshape(-1), 0),
+        labels,
         gt32.reshape(-1),
     )
 

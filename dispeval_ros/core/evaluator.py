@@ -232,11 +232,14 @@ class Evaluator:
                 "the ground truth has no valid point (every value is NaN, inf or ≤ 0"
                 + (" inside the 'all' mask)" if "all" in bool_masks else ")")
             )
-        if set(self.criteria) <= set(crit.STANDARD_SETS) and not (
-            "depth" in self.criteria and self.depth_ranges
-        ):
+        if set(self.criteria) <= set(crit.STANDARD_SETS):
             partition, gt_sorted = crit.standard_partition(
-                gt, valid, self.criteria, self._visibility_options(bool_masks, right)
+                gt,
+                valid,
+                self.criteria,
+                self._visibility_options(bool_masks, right),
+                camera=camera,
+                depth_ranges=self.depth_ranges,
             )
         else:
             built: dict[str, crit.CriterionSet] = {}
