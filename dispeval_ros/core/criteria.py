@@ -302,8 +302,8 @@ def kmeans_thresholds(
         float(packed.min()),  # numpy's vectorised min and max
         float(packed.max()),
         max_iterations,
-        np.empty(_KMEANS_BINS + 1, dtype=np.int64),
-        np.empty((8, _KMEANS_BINS + 1)),
+        np.zeros(_KMEANS_BINS + 1, dtype=np.int64),
+        np.zeros((8, _KMEANS_BINS + 1)),
         np.empty(packed.shape[0]),
         thresholds,
     )

@@ -476,18 +476,15 @@ def kmeans_three(
        threshold leaving them copies again. A value equal to a threshold goes to the lower
        cluster.
 
-    One compiled function without allocations; the caller allocates ``counts`` int64
-    ``(bins + 1)``, ``moments`` float64 ``(8, bins + 1)`` and ``window`` one float64 per value.
+    One compiled function without allocations; the caller allocates ``counts`` int64 zeros
+    ``(bins + 1)``, ``moments`` float64 ``(8, bins + 1)`` with zeros in its first two rows, and
+    ``window`` one float64 per value.
     """
     bins = counts.shape[0] - 1
     n = values.shape[0]
     scale = bins / (hi - lo) if hi > lo else 0.0
     sums = moments[0]
     squares = moments[1]
-    for b in range(bins + 1):
-        counts[b] = 0
-        sums[b] = 0.0
-        squares[b] = 0.0
     current = 0
     run_n = 0
     run_s = 0.0
@@ -509,28 +506,21 @@ def kmeans_three(
     counts[current] += run_n
     sums[current] += run_s
     squares[current] += run_q
-    kept_counts = moments[2]  # occupied bins only, then their prefix sums
-    kept_sums = moments[3]
-    kept_squares = moments[4]
+    cw = moments[5]  # prefix sums over the occupied bins
+    cs = moments[6]
+    cq = moments[7]
+    cw[0] = cs[0] = cq[0] = 0.0
     occupied = 0
     for b in range(bins):
         if counts[b] > 0:
-            kept_counts[occupied] = counts[b]
-            kept_sums[occupied] = sums[b]
-            kept_squares[occupied] = squares[b]
+            cw[occupied + 1] = cw[occupied] + counts[b]
+            cs[occupied + 1] = cs[occupied] + sums[b]
+            cq[occupied + 1] = cq[occupied] + squares[b]
             occupied += 1
     c0 = lo + (hi - lo) / 6
     c1 = lo + (hi - lo) / 2
     c2 = lo + 5 * (hi - lo) / 6
     if occupied >= 3:
-        cw = moments[5]
-        cs = moments[6]
-        cq = moments[7]
-        cw[0] = cs[0] = cq[0] = 0.0
-        for b in range(occupied):
-            cw[b + 1] = cw[b] + kept_counts[b]
-            cs[b + 1] = cs[b] + kept_sums[b]
-            cq[b + 1] = cq[b] + kept_squares[b]
         best = np.inf
         best_i = 1
         best_j = 2
