@@ -10,6 +10,7 @@ same thresholds up to rounding in the sums, on random maps and on every real sce
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -292,3 +293,13 @@ def assert_same_layout(ours: criteria.Partition, expected: criteria.Partition) -
         expected.overlapping,
         dict(expected.sources),
     )
+
+
+@settings(max_examples=60, deadline=None)
+@given(disparity_maps(), st.sampled_from([0.0, 0.5, 1.0, 3.0, -1.0, math.nan]))
+def test_zbuffer_occlusion_matches_reference_for_any_tolerance(
+    gt: np.ndarray, tolerance: float
+) -> None:
+    valid = criteria.valid_ground_truth(gt)
+    occluded, _ = criteria.occlusion(gt, valid, tolerance=tolerance)
+    np.testing.assert_array_equal(occluded, numpy_zbuffer(gt, valid, tolerance))

@@ -122,15 +122,18 @@ def occlusion(
             np.ascontiguousarray(valid, dtype=np.bool_),
         )
         return occluded, "right-view GT"
+    if tolerance < 0:  # every point hides itself: the z-buffer of its own landing exceeds d + tol
+        return valid.astype(np.bool_, copy=True), "left GT z-buffer"
     width = gt.shape[1]
-    occluded = np.zeros(gt.shape, dtype=np.bool_)
+    occluded = np.empty(gt.shape, dtype=np.bool_)
     kernels.forward_warp_occlusion(
         np.ascontiguousarray(gt, dtype=np.float32),
         np.ascontiguousarray(valid, dtype=np.bool_),
         float(tolerance),
         occluded,
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
+        np.empty(width + kernels.SPARE_SLOTS + 1, dtype=np.float32),
+        np.empty(width, dtype=np.uint32),
+        np.empty(width, dtype=np.uint32),
     )
     return occluded, "left GT z-buffer"
 

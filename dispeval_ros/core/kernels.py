@@ -291,41 +291,71 @@ def accumulate_cells(
                 )
 
 
-@njit(cache=True, nogil=True)
+#: Spare z-buffer slots that pixels landing nowhere write to in turn (never read): one slot for
+#: all of them would chain every such store to the one before.
+SPARE_SLOTS = 16
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def forward_warp_occlusion(
     gt: np.ndarray,
     valid: np.ndarray,
     tolerance: float,
     occluded: np.ndarray,
     zbuffer: np.ndarray,
-    targets: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Occlusion of the left view from the left GT alone (z-buffer forward warping).
 
-    Each valid point ``(x, y)`` lands at ``round(x − d)`` in the right view. It is occluded
-    when it lands outside the image, or another point lands on the same position with a
-    disparity larger by more than ``tolerance`` (that point is nearer and hides it). Writes
-    ``occluded`` (all False on entry); ``zbuffer`` (float64) and ``targets`` (int64) are
-    one-row scratch arrays.
+    Each valid point ``(x, y)`` lands at ``floor(x − d + 0.5)`` in the right view. It is
+    occluded when it lands outside the image, or another point lands on the same position
+    with a disparity larger by more than ``tolerance`` (≥ 0; that point is nearer and hides
+    it). Writes every pixel of ``occluded``. Per row, a vectorised pass finds where each pixel
+    lands; a point can only be hidden by a point to its right, so one right-to-left pass
+    (:func:`_row_hidden`) reads and writes the z-buffer. The caller allocates ``zbuffer``
+    (float32, width + :data:`SPARE_SLOTS` + 1), ``target`` and ``slot`` (uint32, width).
     """
     height, width = gt.shape
+    never = width + SPARE_SLOTS  # a slot that stays −inf: what points nothing can hide read
+    zbuffer[never] = -np.inf
     for y in range(height):
-        for x in range(width):
+        row = gt[y]
+        ok = valid[y]
+        out = occluded[y]
+        for x in range(width + SPARE_SLOTS):
             zbuffer[x] = -np.inf
-        for x in range(width):
-            target = -1  # -1: not valid, -2: lands outside the image
-            if valid[y, x]:
-                d = gt[y, x]
-                target = int(np.floor(x - d + 0.5))
-                if 0 <= target < width:
-                    zbuffer[target] = max(zbuffer[target], d)
-                else:
-                    target = -2
-            targets[x] = target
-        for x in range(width):
-            target = targets[x]
-            if target == -2 or (target >= 0 and zbuffer[target] > gt[y, x] + tolerance):
-                occluded[y, x] = True
+        for x in range(width):  # geometry: vectorises
+            d = np.float64(row[x]) if ok[x] else 0.0
+            landing = np.floor(min(max(x - d + 0.5, -1.0), np.float64(width)))
+            lands = ok[x] & (landing >= 0.0) & (landing < width)
+            out[x] = ok[x] != lands  # valid and landing outside the image
+            target[x] = np.uint32(landing) if lands else np.uint32(never)
+            slot[x] = np.uint32(landing) if lands else np.uint32(width + (x & (SPARE_SLOTS - 1)))
+        _row_hidden(row, target, slot, tolerance, zbuffer, out)
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _row_hidden(
+    row: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
+    tolerance: float,
+    zbuffer: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One row's z-buffer, right to left: marks in ``out`` the points a point to their right hides.
+
+    Branch-free (holes and occlusions are not predictable) and with unsigned indices (no
+    negative-index wrap-around); a kernel of its own, as ``gtfree._row_visible``.
+    """
+    width = row.shape[0]
+    for i in range(width):
+        x = np.uint64(width - 1 - i)
+        hidden = np.float64(zbuffer[target[x]]) > np.float64(row[x]) + tolerance
+        here = slot[x]
+        zbuffer[here] = max(zbuffer[here], row[x])
+        out[x] = out[x] | hidden
 
 
 @njit(cache=True, nogil=True)
