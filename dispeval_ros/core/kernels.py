@@ -444,10 +444,12 @@ def partition_cells(
         c = visibility * visibility_stride + depth * depth_stride
         flat_cells[i] = c if flat_valid[i] else -1
     if labels_stride != 0:  # a loop of its own: ``flat_labels`` may be ``flat_cells`` otherwise
-        for i in range(pixels):
-            flat_cells[i] += flat_labels[i] * labels_stride if flat_valid[i] else 0
-    for i in range(pixels):
-        lanes[i & 3, flat_cells[i] + 1] += 1  # interleaved counters: no chained increments
+        for i in range(pixels):  # a negative label leaves the pixel out
+            c = flat_cells[i] + flat_labels[i] * labels_stride
+            flat_cells[i] = max(c, -1) if flat_valid[i] else -1
+    # Indices are unsigned below (cells are >= -1): no negative-index wrap-around is computed.
+    for i in range(pixels):  # interleaved counters: no chained increments
+        lanes[np.uint64(i & 3), np.uint64(flat_cells[i] + 1)] += 1
     offsets[0] = 0
     for c in range(n_cells):
         offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
@@ -455,19 +457,20 @@ def partition_cells(
     for c in range(n_cells + 1):
         lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
     gather = sorted_values.shape[0] > 0
-    current = 0
-    position = lanes[0, 0]
+    current = np.uint64(0)
+    position = np.uint64(lanes[0, 0])
     for i in range(pixels):  # a run of one cell is placed from a register
-        c = flat_cells[i]
-        if c >= 0:
+        cell = flat_cells[i]
+        if cell >= 0:
+            c = np.uint64(cell)
             if c != current:
                 lanes[0, current] = position
                 current = c
-                position = lanes[0, c]
+                position = np.uint64(lanes[0, c])
             order[position] = i
             if gather:
                 sorted_values[position] = flat_values[i]
-            position += 1
+            position += np.uint64(1)
 
 
 @njit(cache=True, nogil=True)
