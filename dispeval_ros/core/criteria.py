@@ -194,14 +194,15 @@ def is_sparse(valid: np.ndarray) -> bool:
     return _sparse_share(valid, int((valid & vertical & horizontal).sum()))
 
 
-def _may_be_sparse(valid: np.ndarray) -> bool:
-    return min(valid.shape) >= 2 and int(np.count_nonzero(valid)) >= SPARSE_MIN_POINTS
+def _may_be_sparse(valid: np.ndarray, count: int | None = None) -> bool:
+    count = int(np.count_nonzero(valid)) if count is None else count
+    return min(valid.shape) >= 2 and count >= SPARSE_MIN_POINTS
 
 
 def _sparse_share(valid: np.ndarray, connected: int) -> bool:
     """The rule of :func:`is_sparse` given the number of connected valid points."""
-    share = SPARSE_CONNECTED_SHARE * int(np.count_nonzero(valid))
-    return _may_be_sparse(valid) and connected < share
+    count = int(np.count_nonzero(valid))
+    return _may_be_sparse(valid, count) and connected < SPARSE_CONNECTED_SHARE * count
 
 
 def sparse_discontinuities(

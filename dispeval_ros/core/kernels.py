@@ -557,9 +557,14 @@ def kmeans_three(
         best = np.inf
         best_i = 1
         best_j = 2
+        # Every error is >= 0 up to rounding (far below ``slack``): a first cluster that alone
+        # costs more than the best pair found cannot lead to a better one.
+        slack = 1e-9 * abs(cq[occupied])
         for i in range(1, occupied - 1):
             n0 = cw[i]
             sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+            if sse0 > best + slack:
+                continue
             for j in range(i + 1, occupied):
                 n1 = cw[j] - n0
                 n2 = cw[occupied] - cw[j]
