@@ -335,7 +335,7 @@ def forward_warp_occlusion(
         _row_hidden(row, target, slot, tolerance, zbuffer, out)
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _row_hidden(
     row: np.ndarray,
     target: np.ndarray,
