@@ -10,6 +10,7 @@ same thresholds up to rounding in the sums, on random maps and on every real sce
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from dispeval_ros import Evaluator
+from dispeval_ros import Camera, Evaluator
 from dispeval_ros.core import criteria
 from dispeval_ros.core.criteria import is_sparse
 from dispeval_ros.errors import DispevalError
@@ -227,3 +228,78 @@ def test_partition_matches_reference_on_real_scenes(shared_data: Path) -> None:
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (5, 1)])
 def test_partition_matches_reference_on_tiny_maps(shape: tuple[int, int]) -> None:
     assert_same_partition(np.arange(1, shape[0] * shape[1] + 1, dtype=np.float32).reshape(shape))
+
+
+def test_partition_matches_reference_when_lloyd_crosses_many_bins() -> None:
+    # One far outlier puts the bulk in the first bins: the thresholds start far from their
+    # fixpoint and cross hundreds of bins (the kernel copies the bins it splits again).
+    rng = np.random.default_rng(3)
+    for extra in ([], [3.0] * 50, list(rng.uniform(200, 300, 80))):
+        values = np.concatenate([rng.uniform(1, 2, 600), extra, [1e6, 2e5]]).astype(np.float32)
+        gt = np.zeros(32 * 32, np.float32)
+        gt[: values.size] = values
+        assert_same_partition(gt.reshape(32, 32))
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        ("all",),
+        ("depth",),
+        ("visibility", "depth"),
+        ("depth", "all", "visibility"),
+        ("visibility", "legacy"),
+        ("legacy", "depth", "visibility"),
+    ],
+)
+def test_standard_partition_is_build_partition_of_the_sets(names: tuple[str, ...]) -> None:
+    rng = np.random.default_rng(5)
+    gt = (np.linspace(5.0, 60.0, 80)[None, :] + rng.normal(0, 0.5, (50, 80))).astype(np.float32)
+    gt[rng.random(gt.shape) < 0.1] = np.nan
+    nonocc = rng.random(gt.shape) < 0.9
+    for masks in ({}, {"nonocc": nonocc}):
+        valid = criteria.valid_ground_truth(gt)
+        visibility = criteria.visibility_set(gt, valid, nonocc=masks.get("nonocc"))
+        made = {
+            "all": criteria.all_set(valid),
+            "visibility": visibility,
+            "legacy": criteria.legacy_set(visibility),
+            "depth": criteria.depth_set(gt, valid),
+        }
+        expected = criteria.build_partition(valid, [made[name] for name in names])
+        options = criteria.VisibilityOptions(nonocc=masks.get("nonocc"))
+        ours, gt_sorted = criteria.standard_partition(gt, valid, names, options)
+        assert_same_layout(ours, expected)
+        np.testing.assert_array_equal(gt_sorted, gt.ravel()[expected.order])
+        # metric depth ranges: the depth classes come as a label image
+        camera = Camera(f=700.0, baseline=0.5)
+        made["depth"] = criteria.depth_set(gt, valid, camera=camera, ranges=RANGES)
+        expected = criteria.build_partition(valid, [made[name] for name in names])
+        ours, _ = criteria.standard_partition(
+            gt, valid, names, options, camera=camera, depth_ranges=RANGES
+        )
+        assert_same_layout(ours, expected)
+
+
+RANGES = ((0.0, 8.0), (8.0, 20.0), (20.0, float("inf")))
+
+
+def assert_same_layout(ours: criteria.Partition, expected: criteria.Partition) -> None:
+    """Same cells, order, offsets, criteria, membership, overlapping criteria and sources."""
+    for field in ("cells", "order", "offsets", "membership"):
+        np.testing.assert_array_equal(getattr(ours, field), getattr(expected, field))
+    assert (ours.criteria, ours.overlapping, dict(ours.sources)) == (
+        expected.criteria,
+        expected.overlapping,
+        dict(expected.sources),
+    )
+
+
+@settings(max_examples=60, deadline=None)
+@given(disparity_maps(), st.sampled_from([0.0, 0.5, 1.0, 3.0, -1.0, math.nan]))
+def test_zbuffer_occlusion_matches_reference_for_any_tolerance(
+    gt: np.ndarray, tolerance: float
+) -> None:
+    valid = criteria.valid_ground_truth(gt)
+    occluded, _ = criteria.occlusion(gt, valid, tolerance=tolerance)
+    np.testing.assert_array_equal(occluded, numpy_zbuffer(gt, valid, tolerance))

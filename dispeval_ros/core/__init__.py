@@ -5,7 +5,14 @@ end (files, bags, ROS topics, DDS) shares one tested implementation.
 """
 
 from dispeval_ros.core.camera import Camera
-from dispeval_ros.core.criteria import CRITERION_SETS, CriterionSet, Partition, build_partition
+from dispeval_ros.core.criteria import (
+    CRITERION_SETS,
+    CriterionSet,
+    Partition,
+    VisibilityOptions,
+    build_partition,
+    standard_partition,
+)
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, POLICIES, Evaluator, Reference
 from dispeval_ros.core.gtfree import GroundTruthFree, ImagePair
 from dispeval_ros.core.measures import DEFAULT_MEASURES, HIGHER_IS_BETTER, Scores, parse_measures
@@ -57,6 +64,7 @@ __all__ = [
     "Scores",
     "StaticTransform",
     "TransformTree",
+    "VisibilityOptions",
     "astar_groups",
     "build_partition",
     "dominates",
@@ -70,5 +78,6 @@ __all__ = [
     "pareto_front",
     "parse_measures",
     "project_cloud",
+    "standard_partition",
     "summarize_frames",
 ]

@@ -122,15 +122,18 @@ def occlusion(
             np.ascontiguousarray(valid, dtype=np.bool_),
         )
         return occluded, "right-view GT"
+    if tolerance < 0:  # every point hides itself: the z-buffer of its own landing exceeds d + tol
+        return valid.astype(np.bool_, copy=True), "left GT z-buffer"
     width = gt.shape[1]
-    occluded = np.zeros(gt.shape, dtype=np.bool_)
+    occluded = np.empty(gt.shape, dtype=np.bool_)
     kernels.forward_warp_occlusion(
         np.ascontiguousarray(gt, dtype=np.float32),
         np.ascontiguousarray(valid, dtype=np.bool_),
         float(tolerance),
         occluded,
-        np.empty(width, dtype=np.float64),
-        np.empty(width, dtype=np.int64),
+        np.empty(width + kernels.SPARE_SLOTS + 1, dtype=np.float32),
+        np.empty(width, dtype=np.uint32),
+        np.empty(width, dtype=np.uint32),
     )
     return occluded, "left GT z-buffer"
 
@@ -142,16 +145,27 @@ def discontinuities(
 
     Only jumps between two valid points count, so the border of unknown GT is no boundary.
     """
-    jumps: np.ndarray = np.zeros(gt.shape, dtype=np.uint8)
-    kernels.jump_mask(
+    return _dilated(_jumps(gt, valid, gap)[0], width)
+
+
+def _jumps(gt: np.ndarray, valid: np.ndarray, gap: float) -> tuple[np.ndarray, int]:
+    """Both ends of every 4-neighbour jump, and the number of connected points (one pass)."""
+    jumps = np.empty(gt.shape, dtype=np.bool_)
+    connected = kernels.jump_marks(
         np.ascontiguousarray(gt, dtype=np.float32),
         np.ascontiguousarray(valid, dtype=np.bool_),
         float(gap),
         jumps,
+        np.empty((5, gt.shape[1] + 1), dtype=np.bool_),
     )
-    if width > 1:
-        jumps = cv2.dilate(jumps, np.ones((width, width), np.uint8))
-    return jumps.astype(bool)
+    return jumps, int(connected)
+
+
+def _dilated(jumps: np.ndarray, width: int) -> np.ndarray:
+    """``jumps`` dilated by a ``width``-square (OpenCV on the same bytes viewed as 0/1)."""
+    if width <= 1:
+        return jumps
+    return cv2.dilate(jumps.view(np.uint8), np.ones((width, width), np.uint8)).view(np.bool_)
 
 
 BOUNDARY_MODES = ("auto", "dense", "sparse")
@@ -169,8 +183,7 @@ def is_sparse(valid: np.ndarray) -> bool:
     Maps one pixel high or wide, or with fewer than :data:`SPARSE_MIN_POINTS` valid points,
     are never sparse (the 4-neighbour rule is then kept).
     """
-    count = int(valid.sum())
-    if count < SPARSE_MIN_POINTS or min(valid.shape) < 2:
+    if not _may_be_sparse(valid):
         return False
     vertical = np.zeros(valid.shape, bool)
     vertical[1:] |= valid[:-1]
@@ -178,8 +191,18 @@ def is_sparse(valid: np.ndarray) -> bool:
     horizontal = np.zeros(valid.shape, bool)
     horizontal[:, 1:] |= valid[:, :-1]
     horizontal[:, :-1] |= valid[:, 1:]
-    connected = int((valid & vertical & horizontal).sum())
-    return connected < SPARSE_CONNECTED_SHARE * count
+    return _sparse_share(valid, int((valid & vertical & horizontal).sum()))
+
+
+def _may_be_sparse(valid: np.ndarray, count: int | None = None) -> bool:
+    count = int(np.count_nonzero(valid)) if count is None else count
+    return min(valid.shape) >= 2 and count >= SPARSE_MIN_POINTS
+
+
+def _sparse_share(valid: np.ndarray, connected: int) -> bool:
+    """The rule of :func:`is_sparse` given the number of connected valid points."""
+    count = int(np.count_nonzero(valid))
+    return _may_be_sparse(valid, count) and connected < SPARSE_CONNECTED_SHARE * count
 
 
 def sparse_discontinuities(
@@ -188,9 +211,17 @@ def sparse_discontinuities(
     """Valid points with a valid point in their ``width``-square differing by more than ``gap``.
 
     The boundary of sparse GT (LiDAR): 4-neighbour jumps need neighbours a scan rarely has.
+    The square is centred on the point (``width // 2`` each side). Such a neighbour exists
+    exactly when the square's largest valid value exceeds ``d`` by more than ``gap`` or its
+    smallest falls short by more (float32 differences are monotonic): a max and a min filter.
     """
     gt32 = np.ascontiguousarray(gt, dtype=np.float32)
-    return kernels.sparse_jump_mask(gt32, valid, float(gap), int(width)).astype(bool)
+    side = 2 * (max(width, 1) // 2) + 1
+    square = np.ones((side, side), np.uint8)
+    highest = cv2.dilate(np.where(valid, gt32, np.float32(-np.inf)), square)
+    lowest = cv2.erode(np.where(valid, gt32, np.float32(np.inf)), square)
+    with np.errstate(invalid="ignore"):
+        return valid & ((highest - gt32 > gap) | (gt32 - lowest > gap))
 
 
 def visibility_set(
@@ -210,21 +241,46 @@ def visibility_set(
     ``boundary_mode``: ``dense`` (4-neighbour jumps dilated by ``width``), ``sparse``
     (:func:`sparse_discontinuities`) or ``auto`` (sparse when :func:`is_sparse`).
     """
-    occluded, source = occlusion(gt, valid, nonocc=nonocc, gt_right=gt_right, tolerance=tolerance)
-    if disc is not None:
-        _check_shape("the 'disc' mask", disc, gt)
-        near_jump = disc.astype(bool, copy=False)
-        source += ", official disc mask"
-    elif boundary_mode == "sparse" or (boundary_mode == "auto" and is_sparse(valid)):
-        near_jump = sparse_discontinuities(gt, valid, gap, width)
-        source += ", sparse-GT boundary"
-    else:
-        near_jump = discontinuities(gt, valid, gap, width)
+    options = VisibilityOptions(nonocc, disc, gt_right, gap, width, tolerance, boundary_mode)
+    occluded, near_jump, source = _visibility_masks(gt, valid, options)
     labels = np.empty(gt.shape, np.int32)
     kernels.visibility_labels(
         _flat(occluded, np.bool_), _flat(near_jump, np.bool_), labels.reshape(-1)
     )
     return _partitioning("visibility", labels, VISIBILITY, source)
+
+
+@dataclass(frozen=True)
+class VisibilityOptions:
+    """How the ``visibility`` classes are found (see :func:`visibility_set`)."""
+
+    nonocc: np.ndarray | None = None
+    disc: np.ndarray | None = None
+    gt_right: np.ndarray | None = None
+    gap: float = 2.0
+    width: int = 9
+    tolerance: float = 1.0
+    boundary_mode: str = "auto"
+
+
+def _visibility_masks(
+    gt: np.ndarray, valid: np.ndarray, options: VisibilityOptions
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Occluded points, points near a discontinuity and where both came from."""
+    nonocc, disc, gap, width = options.nonocc, options.disc, options.gap, options.width
+    occluded, source = occlusion(
+        gt, valid, nonocc=nonocc, gt_right=options.gt_right, tolerance=options.tolerance
+    )
+    if disc is not None:
+        _check_shape("the 'disc' mask", disc, gt)
+        return occluded, disc.astype(bool, copy=False), source + ", official disc mask"
+    sparse_boundary = source + ", sparse-GT boundary"
+    if options.boundary_mode == "sparse":
+        return occluded, sparse_discontinuities(gt, valid, gap, width), sparse_boundary
+    jumps, connected = _jumps(gt, valid, gap)  # the sparse test comes from the same pass
+    if options.boundary_mode == "auto" and _sparse_share(valid, connected):
+        return occluded, sparse_discontinuities(gt, valid, gap, width), sparse_boundary
+    return occluded, _dilated(jumps, width), source
 
 
 def kmeans_thresholds(
@@ -242,17 +298,17 @@ def kmeans_thresholds(
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     values = _flat(gt)
-    pixels = values.shape[0]
+    packed = np.empty(values.shape, dtype=values.dtype)
+    packed = packed[: kernels.pack_valid(values, _flat(valid, np.bool_), packed)]
     thresholds = np.empty(2)
     kernels.kmeans_three(
-        values,
-        _flat(valid, np.bool_),
+        packed,
+        float(packed.min()),  # numpy's vectorised min and max
+        float(packed.max()),
         max_iterations,
-        np.empty(pixels),
-        np.empty(pixels, dtype=np.int32),
-        np.empty(pixels),
-        np.zeros((4, _KMEANS_BINS + 1), dtype=np.int64),
-        np.empty((7, _KMEANS_BINS + 1)),
+        np.zeros(_KMEANS_BINS + 1, dtype=np.int64),
+        np.zeros((8, _KMEANS_BINS + 1)),
+        np.empty(packed.shape[0]),
         thresholds,
     )
     return float(thresholds[0]), float(thresholds[1])
@@ -278,7 +334,7 @@ def depth_set(
         low, high = kmeans_thresholds(gt, valid)
         labels = np.empty(gt.shape, np.int32)
         kernels.threshold_labels(_flat(gt), low, high, labels.reshape(-1))
-        return _partitioning("depth", labels, DEPTH, f"3-means thresholds {low:.6g}, {high:.6g} px")
+        return _partitioning("depth", labels, DEPTH, _thresholds_text(low, high))
     if camera is None:
         raise ConfigurationError("metric depth ranges need a camera (focal length and baseline)")
     edges = _range_edges(ranges)
@@ -291,6 +347,10 @@ def depth_set(
     labels = np.searchsorted(edges, depth, side="right").astype(np.int32) - 1
     labels = np.clip(labels, 0, len(criteria) - 1)
     return _partitioning("depth", labels, criteria, "metric depth ranges")
+
+
+def _thresholds_text(low: float, high: float) -> str:
+    return f"3-means thresholds {low:.6g}, {high:.6g} px"
 
 
 def _range_edges(ranges: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -348,11 +408,22 @@ def legacy_set(visibility: CriterionSet) -> CriterionSet:
 
     Built on the visibility classes: occluded, boundary (= disc), interior.
     """
-    # classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
-    membership = np.array([[False, True, True], [True, True, True], [False, True, False]])
     return CriterionSet(
-        "legacy", visibility.labels, LEGACY, membership, overlapping=True, source=visibility.source
+        "legacy",
+        visibility.labels,
+        LEGACY,
+        _LEGACY_MEMBERSHIP,
+        overlapping=True,
+        source=visibility.source,
     )
+
+
+# classes: 0 occluded, 1 boundary (disc), 2 interior: nonocc = {1, 2}, all = all, disc = {1}
+_LEGACY_MEMBERSHIP = np.array([[False, True, True], [True, True, True], [False, True, False]])
+
+
+def _legacy_layout(visibility: CriterionSet) -> CriterionSet:
+    return _layout("legacy", LEGACY, _LEGACY_MEMBERSHIP, overlapping=True, source=visibility.source)
 
 
 @dataclass(frozen=True)
@@ -391,17 +462,133 @@ class Partition:
         return np.isin(self.cells, cells_in)
 
 
+_NO_LABELS = np.empty((0, 0), np.int32)
+
+
+def _layout(
+    name: str,
+    criteria: tuple[str, ...],
+    membership: np.ndarray,
+    *,
+    overlapping: bool = False,
+    source: str = "",
+) -> CriterionSet:
+    """A criterion set without its label image, for :func:`standard_partition` only.
+
+    The partition kernel computes the classes of such a set itself.
+    """
+    return CriterionSet(name, _NO_LABELS, criteria, membership, overlapping, source)
+
+
 def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partition:
     """Combine criterion sets into cells (the product of their classes) over the valid points."""
     if not sets:
         raise ConfigurationError("no criterion set given; choose from " + ", ".join(CRITERION_SETS))
-    cells = np.zeros(valid.shape, np.int32)
+    folded: np.ndarray | None = None  # the labels of every set with classes, as one image
     stride = 1
     for criterion_set in sets:
         if criterion_set.classes > 1:
-            kernels.add_labels(cells.reshape(-1), _flat(criterion_set.labels, np.int32), stride)
+            labels = _flat(criterion_set.labels, np.int32)
+            term = labels if stride == 1 else labels * stride
+            folded = term if folded is None else folded + term  # new arrays: labels stay as given
         stride *= criterion_set.classes
-    n_cells = stride
+    flat_valid = _flat(valid, np.bool_)
+    cells = np.empty(valid.shape, np.int32)
+    unused = cells.reshape(-1).view(np.float32)  # stands in for the inputs with stride 0
+    return _partition(
+        valid,
+        sets,
+        cells,
+        (flat_valid, flat_valid, 0),
+        (unused, 0.0, 0.0, 0),
+        (cells.reshape(-1), 0) if folded is None else (folded.astype(np.int32, copy=False), 1),
+        None,
+    )[0]
+
+
+def standard_partition(
+    gt: np.ndarray,
+    valid: np.ndarray,
+    names: Sequence[str],
+    options: VisibilityOptions | None = None,
+    *,
+    camera: Camera | None = None,
+    depth_ranges: Sequence[tuple[float, float]] | None = None,
+) -> tuple[Partition, np.ndarray]:
+    """The partition of standard criterion sets and the GT in partition order (float32).
+
+    Sets ``all``, ``visibility``, ``legacy`` and ``depth`` (3-means, or ``depth_ranges`` with
+    a ``camera``) in the order of ``names``: the partition :func:`build_partition` makes of
+    :func:`all_set`, :func:`visibility_set`, :func:`legacy_set` and :func:`depth_set`, but the
+    kernel computes the visibility and 3-means classes per pixel while it builds the cells
+    (no label images).
+    """
+    unknown = set(names) - set(STANDARD_SETS)
+    if unknown or not names:
+        raise ConfigurationError(f"no standard criterion sets: {', '.join(names)}")
+    gt32 = np.ascontiguousarray(gt, dtype=np.float32)
+    cells = np.empty(gt.shape, np.int32)
+    occluded = near_jump = valid
+    visibility: CriterionSet | None = None
+    low = high = 0.0
+    visibility_stride = depth_stride = 0
+    labels = (cells.reshape(-1), 0)  # a label image and its stride: depth by ranges
+    layouts: list[CriterionSet] = []
+    stride = 1
+    for name in names:
+        if name == "all":
+            layouts.append(_layout("all", ("all",), np.eye(1, dtype=bool), source="valid GT"))
+        elif name == "depth" and depth_ranges:
+            layouts.append(depth_set(gt32, valid, camera=camera, ranges=depth_ranges))
+            labels = (_flat(layouts[-1].labels, np.int32), stride)
+        elif name == "depth":
+            low, high = kmeans_thresholds(gt32, valid)
+            depth = _layout(
+                "depth", DEPTH, np.eye(3, dtype=bool), source=_thresholds_text(low, high)
+            )
+            layouts.append(depth)
+            depth_stride = stride
+        else:
+            if visibility is None:
+                occluded, near_jump, source = _visibility_masks(
+                    gt32, valid, options or VisibilityOptions()
+                )
+                visibility = _layout("visibility", VISIBILITY, np.eye(3, dtype=bool), source=source)
+            layouts.append(visibility if name == "visibility" else _legacy_layout(visibility))
+            visibility_stride += stride
+        stride *= layouts[-1].classes
+    return _partition(
+        valid,
+        layouts,
+        cells,
+        (_flat(occluded, np.bool_), _flat(near_jump, np.bool_), visibility_stride),
+        (gt32.reshape(-1), low, high, depth_stride),
+        labels,
+        gt32.reshape(-1),
+    )
+
+
+STANDARD_SETS = ("all", "visibility", "legacy", "depth")
+"""The sets :func:`standard_partition` builds (``depth``: by 3-means)."""
+
+
+def _partition(
+    valid: np.ndarray,
+    sets: Sequence[CriterionSet],
+    cells: np.ndarray,
+    visibility: tuple[np.ndarray, np.ndarray, int],
+    depth: tuple[np.ndarray, float, float, int],
+    labels: tuple[np.ndarray, int],
+    values: np.ndarray | None,
+) -> tuple[Partition, np.ndarray]:
+    """Cells, order and the values in partition order (empty without ``values``) from one kernel.
+
+    ``visibility``: occluded, near-jump masks and stride; ``depth``: values, thresholds and
+    stride; ``labels``: a label image and its stride (strides 0: unused).
+    """
+    n_cells = 1
+    for criterion_set in sets:
+        n_cells *= criterion_set.classes
     criteria: list[str] = []
     rows: list[np.ndarray] = []
     overlapping: list[str] = []
@@ -424,11 +611,31 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
                 overlapping.append(name)
     flat_valid = _flat(valid, np.bool_)
     offsets = np.empty(n_cells + 1, dtype=np.int64)
-    order = np.empty(int(np.count_nonzero(flat_valid)), dtype=np.int32)
-    lanes = np.zeros((4, n_cells + 1), dtype=np.int64)
-    kernels.counting_order(cells.reshape(-1), flat_valid, lanes, offsets, order)
+    evaluated = int(np.count_nonzero(flat_valid))
+    order = np.empty(evaluated, dtype=np.int32)
+    sorted_values = np.empty(0 if values is None else evaluated, dtype=np.float32)
+    occluded, near_jump, visibility_stride = visibility
+    depth_values, low, high, depth_stride = depth
+    label_image, labels_stride = labels
+    kernels.partition_cells(
+        flat_valid,
+        occluded,
+        near_jump,
+        visibility_stride,
+        depth_values,
+        low,
+        high,
+        depth_stride,
+        label_image,
+        labels_stride,
+        cells.reshape(-1),
+        np.zeros((4, n_cells + 1), dtype=np.int64),
+        offsets,
+        order,
+        sorted_values,
+    )
     order = order[: offsets[-1]]  # all of it unless a set labelled a valid point negative
-    return Partition(
+    partition = Partition(
         cells=cells,
         criteria=tuple(criteria),
         membership=np.array(rows, dtype=bool),
@@ -437,6 +644,7 @@ def build_partition(valid: np.ndarray, sets: Sequence[CriterionSet]) -> Partitio
         overlapping=tuple(overlapping),
         sources=sources,
     )
+    return partition, sorted_values[: order.shape[0]]
 
 
 TEXTURE = ("textured", "textureless")

@@ -234,15 +234,26 @@ class Evaluator:
                 "the ground truth has no valid point (every value is NaN, inf or ≤ 0"
                 + (" inside the 'all' mask)" if "all" in bool_masks else ")")
             )
-        built: dict[str, crit.CriterionSet] = {}
-        for name in self.criteria:
-            built[name] = self._criterion_set(
-                name, gt, valid, camera, bool_masks, right, roi, built
+        if set(self.criteria) <= set(crit.STANDARD_SETS):
+            partition, gt_sorted = crit.standard_partition(
+                gt,
+                valid,
+                self.criteria,
+                self._visibility_options(bool_masks, right),
+                camera=camera,
+                depth_ranges=self.depth_ranges,
             )
-        sets = [built[name] for name in self.criteria]
-        partition = crit.build_partition(valid, sets)
-        gt_sorted = np.empty(partition.order.shape, dtype=np.float32)  # valid GT: a plain gather
-        kernels.gather_estimate(gt.ravel(), partition.order, -math.inf, math.inf, False, gt_sorted)
+        else:
+            built: dict[str, crit.CriterionSet] = {}
+            for name in self.criteria:
+                built[name] = self._criterion_set(
+                    name, gt, valid, camera, bool_masks, right, roi, built
+                )
+            partition = crit.build_partition(valid, [built[name] for name in self.criteria])
+            gt_sorted = np.empty(partition.order.shape, dtype=np.float32)  # a plain gather
+            kernels.gather_estimate(
+                gt.ravel(), partition.order, -math.inf, math.inf, False, gt_sorted
+            )
         fb = camera.fb if camera else 1.0
         doffs = camera.doffs if camera else 0.0
         depth_offset = doffs + self.mu
@@ -281,15 +292,7 @@ class Evaluator:
             return crit.all_set(valid)
         if name in ("visibility", "legacy"):
             visibility = built.get("visibility") or crit.visibility_set(
-                gt,
-                valid,
-                nonocc=masks.get("nonocc"),
-                disc=masks.get("disc"),
-                gt_right=gt_right,
-                gap=self.boundary_gap,
-                width=self.boundary_width,
-                tolerance=self.occlusion_tolerance,
-                boundary_mode=self.boundary_mode,
+                gt, valid, **vars(self._visibility_options(masks, gt_right))
             )
             return visibility if name == "visibility" else crit.legacy_set(visibility)
         if name == "depth":
@@ -299,6 +302,20 @@ class Evaluator:
                 "the 'roi' criterion set needs a region-of-interest mask or label image"
             )
         return crit.roi_set(valid, np.asarray(roi), self.roi_names)
+
+    def _visibility_options(
+        self, masks: Mapping[str, np.ndarray], gt_right: np.ndarray | None
+    ) -> crit.VisibilityOptions:
+        """How this evaluator finds the visibility classes, given the official masks."""
+        return crit.VisibilityOptions(
+            nonocc=masks.get("nonocc"),
+            disc=masks.get("disc"),
+            gt_right=gt_right,
+            gap=self.boundary_gap,
+            width=self.boundary_width,
+            tolerance=self.occlusion_tolerance,
+            boundary_mode=self.boundary_mode,
+        )
 
     def _cached_reference(
         self,

@@ -331,80 +331,71 @@ def accumulate_cells(
                 )
 
 
-@njit(cache=True, nogil=True)
-def counting_order(
-    flat: np.ndarray,
-    flat_valid: np.ndarray,
-    lanes: np.ndarray,
-    offsets: np.ndarray,
-    order: np.ndarray,
-) -> None:  # pragma: no cover
-    """Mark invalid pixels ``-1`` in the flat cell image (in place), then sort pixels by cell.
-
-    A stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s pixels.
-    The caller allocates (kernels that allocate and return arrays take twice as long to
-    compile): ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` one
-    entry per valid pixel.
-    """
-    n_cells = offsets.shape[0] - 1
-    for i in range(flat.shape[0]):
-        c = flat[i] if flat_valid[i] else -1
-        flat[i] = c
-        lanes[i & 3, c + 1] += 1  # interleaved counters: no chained increments
-    offsets[0] = 0
-    for c in range(n_cells):
-        offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
-        offsets[c + 1] += lanes[3, c + 1]
-    for c in range(n_cells + 1):
-        lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
-    current = 0
-    position = lanes[0, 0]
-    for i in range(flat.shape[0]):  # a run of one cell is placed from a register
-        c = flat[i]
-        if c >= 0:
-            if c != current:
-                lanes[0, current] = position
-                current = c
-                position = lanes[0, c]
-            order[position] = i
-            position += 1
+#: Spare z-buffer slots that pixels landing nowhere write to in turn (never read): one slot for
+#: all of them would chain every such store to the one before.
+SPARE_SLOTS = 16
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def forward_warp_occlusion(
     gt: np.ndarray,
     valid: np.ndarray,
     tolerance: float,
     occluded: np.ndarray,
     zbuffer: np.ndarray,
-    targets: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Occlusion of the left view from the left GT alone (z-buffer forward warping).
 
-    Each valid point ``(x, y)`` lands at ``round(x − d)`` in the right view. It is occluded
-    when it lands outside the image, or another point lands on the same position with a
-    disparity larger by more than ``tolerance`` (that point is nearer and hides it). Writes
-    ``occluded`` (all False on entry); ``zbuffer`` (float64) and ``targets`` (int64) are
-    one-row scratch arrays.
+    Each valid point ``(x, y)`` lands at ``floor(x − d + 0.5)`` in the right view. It is
+    occluded when it lands outside the image, or another point lands on the same position
+    with a disparity larger by more than ``tolerance`` (≥ 0; that point is nearer and hides
+    it). Writes every pixel of ``occluded``. Per row, a vectorised pass finds where each pixel
+    lands; a point can only be hidden by a point to its right, so one right-to-left pass
+    (:func:`_row_hidden`) reads and writes the z-buffer. The caller allocates ``zbuffer``
+    (float32, width + :data:`SPARE_SLOTS` + 1), ``target`` and ``slot`` (uint32, width).
     """
     height, width = gt.shape
+    never = width + SPARE_SLOTS  # a slot that stays −inf: what points nothing can hide read
+    zbuffer[never] = -np.inf
     for y in range(height):
-        for x in range(width):
+        row = gt[y]
+        ok = valid[y]
+        out = occluded[y]
+        for x in range(width + SPARE_SLOTS):
             zbuffer[x] = -np.inf
-        for x in range(width):
-            target = -1  # -1: not valid, -2: lands outside the image
-            if valid[y, x]:
-                d = gt[y, x]
-                target = int(np.floor(x - d + 0.5))
-                if 0 <= target < width:
-                    zbuffer[target] = max(zbuffer[target], d)
-                else:
-                    target = -2
-            targets[x] = target
-        for x in range(width):
-            target = targets[x]
-            if target == -2 or (target >= 0 and zbuffer[target] > gt[y, x] + tolerance):
-                occluded[y, x] = True
+        for x in range(width):  # geometry: vectorises
+            d = np.float64(row[x]) if ok[x] else 0.0
+            landing = np.floor(min(max(x - d + 0.5, -1.0), np.float64(width)))
+            lands = ok[x] & (landing >= 0.0) & (landing < width)
+            out[x] = ok[x] != lands  # valid and landing outside the image
+            target[x] = np.uint32(landing) if lands else np.uint32(never)
+            slot[x] = np.uint32(landing) if lands else np.uint32(width + (x & (SPARE_SLOTS - 1)))
+        _row_hidden(row, target, slot, tolerance, zbuffer, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _row_hidden(
+    row: np.ndarray,
+    target: np.ndarray,
+    slot: np.ndarray,
+    tolerance: float,
+    zbuffer: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One row's z-buffer, right to left: marks in ``out`` the points a point to their right hides.
+
+    Branch-free (holes and occlusions are not predictable) and with unsigned indices (no
+    negative-index wrap-around). Inlined: as fast, and one function less to compile.
+    """
+    width = row.shape[0]
+    for i in range(width):
+        x = np.uint64(width - 1 - i)
+        hidden = np.float64(zbuffer[target[x]]) > np.float64(row[x]) + tolerance
+        here = slot[x]
+        zbuffer[here] = max(zbuffer[here], row[x])
+        out[x] = out[x] | hidden
 
 
 @njit(cache=True, nogil=True)
@@ -415,163 +406,6 @@ def threshold_labels(
     for i in range(flat_values.shape[0]):
         v = flat_values[i]
         flat_labels[i] = 0 if v > high else (1 if v > low else 2)
-
-
-@njit(cache=True, nogil=True)
-def kmeans_three(
-    flat_values: np.ndarray,
-    flat_valid: np.ndarray,
-    max_iterations: int,
-    packed: np.ndarray,
-    bin_of: np.ndarray,
-    binned: np.ndarray,
-    lanes: np.ndarray,
-    moments: np.ndarray,
-    thresholds: np.ndarray,
-) -> None:  # pragma: no cover - compiled
-    """Deterministic 1-D 3-means of the valid values: writes the two ``thresholds``.
-
-    1. Range and a histogram of ``bins`` equal bins with exact moments; the valid values are
-       also grouped by bin. One pass over every pixel (branch-free: valid values are packed
-       and the range taken together); the rest runs over the valid values only.
-    2. The global optimum over the histogram: every pair of cuts at bin edges, by prefix sums
-       (1-D optimal clusters are intervals), gives the starting centroids.
-    3. Lloyd steps until the centroids no longer change. Binning is monotonic, so a bin below
-       the one holding a threshold lies wholly below it: whole bins add their moments, only
-       the (at most two) bins holding a threshold are split value by value. A value equal
-       to a threshold goes to the lower cluster.
-
-    One compiled function without allocations (each compiled kernel, and every array it
-    allocates or returns, adds to the first run's compile time). The caller allocates:
-    ``packed``, ``bin_of`` (int32), ``binned`` one entry per pixel; ``lanes`` int64 zeros
-    ``(4, bins + 1)``; ``moments`` ``(7, bins + 1)`` float64.
-    """
-    bins = lanes.shape[1] - 1
-    n = flat_values.shape[0]
-    count = 0
-    lo = np.inf
-    hi = -np.inf
-    for i in range(n):
-        ok = flat_valid[i]
-        v = np.float64(flat_values[i])
-        packed[count] = v  # overwritten by the next value unless this one is valid
-        count += 1 if ok else 0
-        lo = min(lo, v if ok else np.inf)
-        hi = max(hi, v if ok else -np.inf)
-    scale = bins / (hi - lo) if hi > lo else 0.0
-    for k in range(count):
-        b = min(int((packed[k] - lo) * scale), bins - 1)
-        bin_of[k] = b
-        lanes[k & 3, b] += 1  # interleaved counters: no chained increments
-    starts = lanes[1]  # lanes 1.. are free once the counts are summed into lane 0
-    for b in range(bins):
-        lanes[0, b] += lanes[1, b] + lanes[2, b] + lanes[3, b]
-    starts[0] = 0
-    for b in range(bins):
-        starts[b + 1] = starts[b] + lanes[0, b]
-    filled = lanes[2]
-    for b in range(bins + 1):
-        filled[b] = starts[b]
-    current = 0
-    position = filled[0]
-    for k in range(count):  # a run of one bin is placed from a register
-        b = bin_of[k]
-        if b != current:
-            filled[current] = position
-            current = b
-            position = filled[b]
-        binned[position] = packed[k]
-        position += 1
-    sums = moments[0]  # per bin, in pixel order
-    kept_counts = moments[1]  # occupied bins only, then their prefix sums
-    kept_sums = moments[2]
-    kept_squares = moments[3]
-    occupied = 0
-    for b in range(bins):
-        total = 0.0
-        total_squares = 0.0
-        for k in range(starts[b], starts[b + 1]):
-            v = binned[k]
-            total += v
-            total_squares += v * v
-        sums[b] = total
-        if starts[b + 1] > starts[b]:
-            kept_counts[occupied] = starts[b + 1] - starts[b]
-            kept_sums[occupied] = total
-            kept_squares[occupied] = total_squares
-            occupied += 1
-    c0 = lo + (hi - lo) / 6
-    c1 = lo + (hi - lo) / 2
-    c2 = lo + 5 * (hi - lo) / 6
-    if occupied >= 3:
-        cw = moments[4]
-        cs = moments[5]
-        cq = moments[6]
-        cw[0] = cs[0] = cq[0] = 0.0
-        for b in range(occupied):
-            cw[b + 1] = cw[b] + kept_counts[b]
-            cs[b + 1] = cs[b] + kept_sums[b]
-            cq[b + 1] = cq[b] + kept_squares[b]
-        best = np.inf
-        best_i = 1
-        best_j = 2
-        for i in range(1, occupied - 1):
-            n0 = cw[i]
-            sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
-            for j in range(i + 1, occupied):
-                n1 = cw[j] - n0
-                n2 = cw[occupied] - cw[j]
-                s1 = cs[j] - cs[i]
-                s2 = cs[occupied] - cs[j]
-                sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
-                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
-                total = sse0 + sse1 + sse2
-                if total < best:
-                    best = total
-                    best_i = i
-                    best_j = j
-        c0 = cs[best_i] / cw[best_i]
-        c1 = (cs[best_j] - cs[best_i]) / (cw[best_j] - cw[best_i])
-        c2 = (cs[occupied] - cs[best_j]) / (cw[occupied] - cw[best_j])
-    for _ in range(max_iterations):
-        low = (c0 + c1) / 2
-        high = (c1 + c2) / 2
-        cut_low = -1 if low < lo else (bins if low > hi else min(int((low - lo) * scale), bins - 1))
-        cut_high = (
-            -1 if high < lo else (bins if high > hi else min(int((high - lo) * scale), bins - 1))
-        )
-        n0 = n1 = n2 = 0.0
-        s0 = s1 = s2 = 0.0
-        for b in range(bins):
-            if (b == cut_low) | (b == cut_high):
-                for k in range(starts[b], starts[b + 1]):
-                    v = binned[k]
-                    if v <= low:
-                        n0 += 1.0
-                        s0 += v
-                    elif v <= high:
-                        n1 += 1.0
-                        s1 += v
-                    else:
-                        n2 += 1.0
-                        s2 += v
-            elif b < cut_low:
-                n0 += starts[b + 1] - starts[b]
-                s0 += sums[b]
-            elif b < cut_high:
-                n1 += starts[b + 1] - starts[b]
-                s1 += sums[b]
-            else:
-                n2 += starts[b + 1] - starts[b]
-                s2 += sums[b]
-        u0 = s0 / n0 if n0 > 0 else c0
-        u1 = s1 / n1 if n1 > 0 else c1
-        u2 = s2 / n2 if n2 > 0 else c2
-        if u0 == c0 and u1 == c1 and u2 == c2:
-            break
-        c0, c1, c2 = u0, u1, u2
-    thresholds[0] = (c0 + c1) / 2
-    thresholds[1] = (c1 + c2) / 2
 
 
 @njit(cache=True, nogil=True)
@@ -610,57 +444,324 @@ def visibility_labels(
 
 
 @njit(cache=True, nogil=True)
-def jump_mask(
-    gt: np.ndarray, valid: np.ndarray, gap: float, jumps: np.ndarray
-) -> None:  # pragma: no cover
-    """1 in ``jumps`` (uint8 zeros) at both ends of every 4-neighbour jump > ``gap`` between valid points."""
-    height, width = gt.shape
-    for y in range(height):
-        for x in range(width):
-            if not valid[y, x]:
-                continue
-            d = gt[y, x]
-            if x + 1 < width and valid[y, x + 1] and abs(d - gt[y, x + 1]) > gap:
-                jumps[y, x] = 1
-                jumps[y, x + 1] = 1
-            if y + 1 < height and valid[y + 1, x] and abs(d - gt[y + 1, x]) > gap:
-                jumps[y, x] = 1
-                jumps[y + 1, x] = 1
+def partition_cells(
+    flat_valid: np.ndarray,
+    flat_occluded: np.ndarray,
+    flat_near_jump: np.ndarray,
+    visibility_stride: int,
+    flat_values: np.ndarray,
+    low: float,
+    high: float,
+    depth_stride: int,
+    flat_labels: np.ndarray,
+    labels_stride: int,
+    flat_cells: np.ndarray,
+    lanes: np.ndarray,
+    offsets: np.ndarray,
+    order: np.ndarray,
+    sorted_values: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """The cell of every pixel, the evaluated pixels sorted by cell and their values gathered.
 
-
-@njit(cache=True, nogil=True)
-def sparse_jump_mask(
-    gt: np.ndarray, valid: np.ndarray, gap: float, width: int
-) -> np.ndarray:  # pragma: no cover - compiled
-    """1 at every valid point with a valid point in its ``width``-square differing by > ``gap``.
-
-    The definition of depth discontinuities for sparse GT (LiDAR), whose points rarely have
-    valid 4-neighbours; the square is centred on the point (``width // 2`` each side).
+    A valid pixel's cell is ``visibility · visibility_stride + depth · depth_stride + label ·
+    labels_stride`` with the visibility class (0 occluded, else 1 near a jump, else 2) and the
+    depth class (0 above ``high``, 1 in ``(low, high]``, 2 otherwise) computed here, and
+    ``label`` from a label image (several criterion sets folded into one); ``-1`` elsewhere.
+    An input whose stride is 0 is not used (any array of the right type will do; for the labels
+    even ``flat_cells``).
+    Then a stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s
+    pixels, and ``sorted_values`` (unless empty) ``flat_values`` in that order. The caller
+    allocates (kernels that allocate and return arrays take twice as long to compile):
+    ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` and
+    ``sorted_values`` one entry per valid pixel.
     """
-    height, columns = gt.shape
-    half = max(width, 1) // 2
-    jumps = np.zeros((height, columns), dtype=np.uint8)
-    for y in range(height):
-        for x in range(columns):
-            if not valid[y, x]:
-                continue
-            d = gt[y, x]
-            found = False
-            for r in range(max(y - half, 0), min(y + half + 1, height)):
-                for c in range(max(x - half, 0), min(x + half + 1, columns)):
-                    if valid[r, c] and abs(gt[r, c] - d) > gap:
-                        found = True
-                        break
-                if found:
-                    break
-            jumps[y, x] = 1 if found else 0
-    return jumps
+    n_cells = offsets.shape[0] - 1
+    pixels = flat_cells.shape[0]
+    for i in range(pixels):  # branch-free: vectorised
+        visibility = 0 if flat_occluded[i] else (1 if flat_near_jump[i] else 2)
+        v = flat_values[i]
+        depth = 0 if v > high else (1 if v > low else 2)
+        c = visibility * visibility_stride + depth * depth_stride
+        flat_cells[i] = c if flat_valid[i] else -1
+    if labels_stride != 0:  # a loop of its own: ``flat_labels`` may be ``flat_cells`` otherwise
+        for i in range(pixels):  # a negative label leaves the pixel out
+            c = flat_cells[i] + flat_labels[i] * labels_stride
+            flat_cells[i] = max(c, -1) if flat_valid[i] else -1
+    # Indices are unsigned below (cells are >= -1): no negative-index wrap-around is computed.
+    for i in range(pixels):  # interleaved counters: no chained increments
+        lanes[np.uint64(i & 3), np.uint64(flat_cells[i] + 1)] += 1
+    offsets[0] = 0
+    for c in range(n_cells):
+        offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
+        offsets[c + 1] += lanes[3, c + 1]
+    for c in range(n_cells + 1):
+        lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
+    gather = sorted_values.shape[0] > 0
+    current = np.uint64(0)
+    position = np.uint64(lanes[0, 0])
+    for i in range(pixels):  # a run of one cell is placed from a register
+        cell = flat_cells[i]
+        if cell >= 0:
+            c = np.uint64(cell)
+            if c != current:
+                lanes[0, current] = position
+                current = c
+                position = np.uint64(lanes[0, c])
+            order[position] = i
+            if gather:
+                sorted_values[position] = flat_values[i]
+            position += np.uint64(1)
 
 
 @njit(cache=True, nogil=True)
-def add_labels(
-    flat_cells: np.ndarray, flat_labels: np.ndarray, stride: int
-) -> None:  # pragma: no cover
-    """``cells += labels · stride`` in place on flat arrays (one pass, no temporary)."""
-    for i in range(flat_cells.shape[0]):
-        flat_cells[i] += flat_labels[i] * stride
+def pack_valid(
+    flat_values: np.ndarray, flat_valid: np.ndarray, packed: np.ndarray
+) -> int:  # pragma: no cover - compiled
+    """Copy the valid values to the front of ``packed`` (branch-free); their number."""
+    count = 0
+    for i in range(flat_values.shape[0]):
+        packed[count] = flat_values[i]  # overwritten by the next value unless this one is valid
+        count += 1 if flat_valid[i] else 0
+    return count
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def kmeans_three(
+    values: np.ndarray,
+    lo: float,
+    hi: float,
+    max_iterations: int,
+    counts: np.ndarray,
+    moments: np.ndarray,
+    window: np.ndarray,
+    thresholds: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Deterministic 1-D 3-means of ``values`` (all valid, in ``[lo, hi]``): two ``thresholds``.
+
+    1. A histogram of ``bins`` equal bins with exact moments, in one pass: a run of values in
+       one bin is summed in registers.
+    2. The global optimum over the histogram: every pair of cuts at bin edges, by prefix sums
+       (1-D optimal clusters are intervals), gives the starting centroids.
+    3. Lloyd steps until the centroids no longer change. Binning is monotonic, so a bin below
+       the one holding a threshold lies wholly below it: whole bins add their moments, only
+       the (at most two) bins holding a threshold are split value by value. Their values are
+       copied out once, with two bins either side (the thresholds rarely move further); a
+       threshold leaving them copies again. A value equal to a threshold goes to the lower
+       cluster.
+
+    One compiled function without allocations; the caller allocates ``counts`` int64 zeros
+    ``(bins + 1)``, ``moments`` float64 ``(8, bins + 1)`` with zeros in its first two rows, and
+    ``window`` one float64 per value.
+    """
+    bins = counts.shape[0] - 1
+    n = values.shape[0]
+    scale = bins / (hi - lo) if hi > lo else 0.0
+    sums = moments[0]
+    squares = moments[1]
+    current = 0
+    run_n = 0
+    run_s = 0.0
+    run_q = 0.0
+    for k in range(n):  # runs of one bin accumulate in registers
+        v = np.float64(values[k])
+        b = min(int((v - lo) * scale), bins - 1)
+        if b != current:
+            counts[current] += run_n
+            sums[current] += run_s
+            squares[current] += run_q
+            current = b
+            run_n = 0
+            run_s = 0.0
+            run_q = 0.0
+        run_n += 1
+        run_s += v
+        run_q += v * v
+    counts[current] += run_n
+    sums[current] += run_s
+    squares[current] += run_q
+    cw = moments[5]  # prefix sums over the occupied bins
+    cs = moments[6]
+    cq = moments[7]
+    cw[0] = cs[0] = cq[0] = 0.0
+    occupied = 0
+    for b in range(bins):
+        if counts[b] > 0:
+            cw[occupied + 1] = cw[occupied] + counts[b]
+            cs[occupied + 1] = cs[occupied] + sums[b]
+            cq[occupied + 1] = cq[occupied] + squares[b]
+            occupied += 1
+    c0 = lo + (hi - lo) / 6
+    c1 = lo + (hi - lo) / 2
+    c2 = lo + 5 * (hi - lo) / 6
+    if occupied >= 3:
+        best = np.inf
+        best_i = 1
+        best_j = 2
+        # Every error is >= 0 up to rounding (far below ``slack``): a first cluster that alone
+        # costs more than the best pair found cannot lead to a better one.
+        slack = 1e-9 * abs(cq[occupied])
+        for i in range(1, occupied - 1):
+            n0 = cw[i]
+            sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+            if sse0 > best + slack:
+                continue
+            for j in range(i + 1, occupied):
+                n1 = cw[j] - n0
+                n2 = cw[occupied] - cw[j]
+                s1 = cs[j] - cs[i]
+                s2 = cs[occupied] - cs[j]
+                sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
+                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
+                total = sse0 + sse1 + sse2
+                if total < best:
+                    best = total
+                    best_i = i
+                    best_j = j
+        c0 = cs[best_i] / cw[best_i]
+        c1 = (cs[best_j] - cs[best_i]) / (cw[best_j] - cw[best_i])
+        c2 = (cs[occupied] - cs[best_j]) / (cw[occupied] - cw[best_j])
+    starts = moments[2]  # where each copied bin's values start in ``window``
+    fill = moments[3]
+    first_low = last_low = first_high = last_high = -1  # the copied bins: two ranges
+    for _ in range(max_iterations):
+        low = (c0 + c1) / 2
+        high = (c1 + c2) / 2
+        cut_low = -1 if low < lo else (bins if low > hi else min(int((low - lo) * scale), bins - 1))
+        cut_high = (
+            -1 if high < lo else (bins if high > hi else min(int((high - lo) * scale), bins - 1))
+        )
+        if (0 <= cut_low < bins and not first_low <= cut_low <= last_low) or (
+            0 <= cut_high < bins and not first_high <= cut_high <= last_high
+        ):
+            first_low = max(cut_low - 2, 0)
+            last_low = min(cut_low + 2, bins - 1)
+            first_high = max(cut_high - 2, 0)
+            last_high = min(cut_high + 2, bins - 1)
+            _copy_bins(
+                values,
+                lo,
+                scale,
+                counts,
+                (first_low, last_low, first_high, last_high),
+                starts,
+                fill,
+                window,
+            )
+        n0 = n1 = n2 = 0.0
+        s0 = s1 = s2 = 0.0
+        for b in range(bins):
+            if (b == cut_low) | (b == cut_high):
+                for k in range(int(starts[b]), int(starts[b]) + counts[b]):
+                    v = window[k]
+                    if v <= low:
+                        n0 += 1.0
+                        s0 += v
+                    elif v <= high:
+                        n1 += 1.0
+                        s1 += v
+                    else:
+                        n2 += 1.0
+                        s2 += v
+            elif b < cut_low:
+                n0 += counts[b]
+                s0 += sums[b]
+            elif b < cut_high:
+                n1 += counts[b]
+                s1 += sums[b]
+            else:
+                n2 += counts[b]
+                s2 += sums[b]
+        u0 = s0 / n0 if n0 > 0 else c0
+        u1 = s1 / n1 if n1 > 0 else c1
+        u2 = s2 / n2 if n2 > 0 else c2
+        if u0 == c0 and u1 == c1 and u2 == c2:
+            break
+        c0, c1, c2 = u0, u1, u2
+    thresholds[0] = (c0 + c1) / 2
+    thresholds[1] = (c1 + c2) / 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _copy_bins(
+    values: np.ndarray,
+    lo: float,
+    scale: float,
+    counts: np.ndarray,
+    ranges: tuple[int, int, int, int],
+    starts: np.ndarray,
+    fill: np.ndarray,
+    window: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Copy the values of the bins in ``ranges`` (two inclusive bin ranges) to ``window``.
+
+    Grouped by bin (``starts[b]``), in the order of ``values``. Blocks of values without one
+    in those bins are skipped after a vectorised test; bins are decided exactly as in the
+    histogram.
+    """
+    bins = counts.shape[0] - 1
+    first_low, last_low, first_high, last_high = ranges
+    position = 0
+    for b in range(bins):
+        starts[b] = position
+        fill[b] = position
+        inside = (first_low <= b <= last_low) | (first_high <= b <= last_high)
+        position += counts[b] if inside else 0
+    a0 = first_low - 1.0  # a margin of one bin: the exact test follows
+    a1 = last_low + 2.0
+    b0 = first_high - 1.0
+    b1 = last_high + 2.0
+    n = values.shape[0]
+    for start in range(0, n, 64):
+        stop = min(start + 64, n)
+        hit = False
+        for k in range(start, stop):
+            e = (np.float64(values[k]) - lo) * scale
+            hit |= ((e >= a0) & (e < a1)) | ((e >= b0) & (e < b1))
+        if not hit:
+            continue
+        for k in range(start, stop):
+            v = np.float64(values[k])
+            b = min(int((v - lo) * scale), bins - 1)
+            if (first_low <= b <= last_low) | (first_high <= b <= last_high):
+                window[int(fill[b])] = v
+                fill[b] += 1
+
+
+@njit(cache=True, nogil=True)
+def jump_marks(
+    gt: np.ndarray, valid: np.ndarray, gap: float, jumps: np.ndarray, rows: np.ndarray
+) -> int:  # pragma: no cover - compiled
+    """Mark both ends of every 4-neighbour jump > ``gap`` between valid points; count connected points.
+
+    Writes every pixel of ``jumps`` (bool). Returns how many valid points have a valid
+    neighbour both vertically and horizontally (the sparse-GT statistic of
+    ``criteria.is_sparse``), from the same pass. Branch-free rows; ``rows`` is bool scratch
+    ``(5, width + 1)``: entry ``x + 1`` of the pair rows is about columns ``x`` and ``x + 1``.
+    """
+    height, width = gt.shape
+    across = rows[0]  # a jump between columns x and x + 1 (at x + 1)
+    pairs = rows[1]  # both columns x and x + 1 valid (at x + 1)
+    down = rows[2]  # a jump between this row and the next
+    above = rows[3]  # ``down`` of the previous row
+    nothing = rows[4]
+    for x in range(width + 1):
+        across[x] = pairs[x] = above[x] = nothing[x] = False
+    connected = 0
+    for y in range(height):
+        row = gt[y]
+        ok = valid[y]
+        for x in range(width - 1):
+            pair = ok[x] & ok[x + 1]
+            pairs[x + 1] = pair
+            across[x + 1] = pair & (abs(row[x] - row[x + 1]) > gap)
+        up = valid[y - 1] if y > 0 else nothing
+        ok_below = valid[y + 1] if y + 1 < height else nothing
+        below = gt[y + 1] if y + 1 < height else row
+        for x in range(width):
+            down[x] = ok[x] & ok_below[x] & (abs(row[x] - below[x]) > gap)
+        out = jumps[y]
+        for x in range(width):
+            out[x] = across[x] | across[x + 1] | down[x] | above[x]
+            connected += (pairs[x] | pairs[x + 1]) & (up[x] | ok_below[x])
+        above, down = down, above
+    return connected
