@@ -179,11 +179,11 @@ def test_merge_of_two_halves_equals_the_whole_run(
     assert "tolerance_ns" in err
 
 
-def failing_on(name: str, action: Callable[[], None]) -> Callable[[CoreConfig, Unit], object]:
-    def evaluate(config: CoreConfig, unit: Unit) -> object:
+def failing_on(name: str, action: Callable[[], None]) -> Callable[[CoreConfig, Unit, int], object]:
+    def evaluate(config: CoreConfig, unit: Unit, threads: int = 1) -> object:
         if unit.sequence == "north" and unit.name == name:
             action()
-        return evaluate_unit(config, unit)
+        return evaluate_unit(config, unit, threads)
 
     return evaluate
 
@@ -216,11 +216,11 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
 from dispeval_ros.offline import units
 evaluate, marker = units.evaluate_unit, Path(sys.argv[1])
-def dies_once(config, unit):
+def dies_once(config, unit, threads=1):
     if unit.sequence == "north" and unit.name == "000002" and not marker.exists():
         marker.touch()
         os._exit(1)
-    return evaluate(config, unit)
+    return evaluate(config, unit, threads)
 units.evaluate_unit = dies_once
 sys.exit(main(sys.argv[2:]))
 """
