@@ -27,6 +27,7 @@ from dispeval_ros.offline.units import (
     UnitFailure,
     UnitRows,
     close_bags,
+    close_scoring_pools,
     forget_bags,
     run_unit,
     scoring_threads,
@@ -82,8 +83,9 @@ class InProcessExecutor:
         return [(index, run_unit(self.config, unit, self.threads))]
 
     def close(self) -> None:
-        """Close the bags this process opened."""
+        """Close the bags this process opened and stop its scoring threads."""
         close_bags()
+        close_scoring_pools()
 
 
 _worker_config: dict[str, CoreConfig] = {}

@@ -252,6 +252,12 @@ def scoring_pool(threads: int) -> ThreadPoolExecutor | None:
     return pool
 
 
+def close_scoring_pools() -> None:
+    """Stop this process's scoring threads (a process with threads forks unsafely)."""
+    while _pools:
+        _pools.popitem()[1].shutdown(wait=True)
+
+
 def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Iterator[_T]:
     """``items`` taken on a thread of their own, up to ``depth`` ahead of the caller.
 
