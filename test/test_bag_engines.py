@@ -7,8 +7,9 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -25,7 +26,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
-from dispeval_ros.offline.units import Unit, evaluate_unit
+from dispeval_ros.offline.units import Unit, UnitRows, evaluate_unit, read_ahead
 from dispeval_ros.stream.core import CoreConfig
 
 SLICE = ("--slice", "0.2")
@@ -336,3 +337,48 @@ def test_auto_slices_follow_length_and_workers_and_resume_keeps_them(
         assert store.done_units("north") == done  # same plan with one worker: nothing new
     assert main(bag_command(drives[:1], tmp_path / "bad", "--slice", "-1")) == 2
     assert "--slice" in capsys.readouterr().err
+
+
+def test_scoring_threads_give_the_rows_of_one_thread(drives: list[Path]) -> None:
+    """A unit scored with its methods on threads: the very rows of one thread."""
+    plan = units_module.plan_bag(drives[0], "north", config(), 400_000_000)
+    for unit in plan.units:
+        alone = UnitRows.of(evaluate_unit(config(), unit, 1))
+        threaded = UnitRows.of(evaluate_unit(config(), unit, 3))
+        assert (threaded.frames, threaded.problems, threaded.messages) == (
+            alone.frames,
+            alone.problems,
+            alone.messages,
+        )
+        for rows in ("frame_rows", "problem_rows", "count_rows", "methods", "criteria"):
+            assert getattr(threaded.rows, rows) == getattr(alone.rows, rows), rows
+    assert sum(len(UnitRows.of(evaluate_unit(config(), u)).rows.frame_rows) for u in plan.units)
+    units_module.close_scoring_pools()
+
+
+def test_read_ahead_yields_in_order_and_raises_where_the_source_did() -> None:
+    def source() -> Iterator[int]:
+        yield from range(50)
+        raise InputError("bag is damaged after log time 49")
+
+    taken: list[int] = []
+    items = read_ahead(source(), depth=4)
+    with pytest.raises(InputError, match="after log time 49"):
+        taken.extend(items)
+    assert taken == list(range(50))
+
+
+def test_read_ahead_stops_its_thread_when_the_reader_stops() -> None:
+    produced: list[int] = []
+
+    def source() -> Iterator[int]:
+        for item in range(1000):
+            produced.append(item)
+            yield item
+
+    before = threading.active_count()
+    items = read_ahead(source(), depth=4)
+    assert next(items) == 0
+    items.close()  # e.g. scoring raised: the bag must not be read on by a stray thread
+    assert threading.active_count() == before
+    assert len(produced) <= 1 + 4 + 1  # the one taken, the queue, the one waiting to go in
