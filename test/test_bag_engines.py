@@ -18,6 +18,7 @@ from test_bag_pipeline import METHODS, bag_args, database_content
 from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.offline import executors as executors_module
 from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.bag_eval import RunReport, evaluate_bags
 from dispeval_ros.offline.dask_executor import DaskExecutor, check_worker
@@ -382,3 +383,32 @@ def test_read_ahead_stops_its_thread_when_the_reader_stops() -> None:
     items.close()  # e.g. scoring raised: the bag must not be read on by a stray thread
     assert threading.active_count() == before
     assert len(produced) <= 1 + 4 + 1  # the one taken, the queue, the one waiting to go in
+
+
+def test_work_alongside_runs_on_a_thread_after_the_workers_fork_and_raises_last(
+    drives: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What runs alongside (the stream digests) starts once the pool forked; its error comes
+    after every unit is written."""
+    contexts: list[str] = []
+    get_context = executors_module.multiprocessing.get_context
+
+    def recorded(method: str) -> object:
+        contexts.append(method)
+        return get_context(method)
+
+    monkeypatch.setattr(executors_module.multiprocessing, "get_context", recorded)
+    threads: list[bool] = []
+
+    def work() -> None:
+        threads.append(threading.current_thread() is not threading.main_thread())
+        raise InputError("cannot read the messages for their sha256")
+
+    record = {**config().as_record(), "slice_ns": 200_000_000}
+    with ResultsStore.create(tmp_path, record) as store:
+        with pytest.raises(InputError, match="sha256"):
+            evaluate_bags(drives, config(), store, jobs=2, slice_ns=200_000_000, alongside=work)
+        planned = units_module.plan_bag(drives[0], "north", config(), 200_000_000).units
+        assert len(store.done_units("north")) == len(planned)
+    assert contexts == ["fork"]
+    assert threads == [True]
