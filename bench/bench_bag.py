@@ -5,17 +5,22 @@
 Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way), or reuses
 --bag. First the cost of each stage on its own (per frame or per method-frame, in one thread):
 opening the bag, reading and deserialising, decoding the pixel buffers, joining, the partition
-of each ground-truth map, scoring and building the unit rows and storing them; their sum is
-what one thread needs per frame, against what 0.5× the reader alone allows. Then the reader
-alone (the baseline: open, iterate and deserialise every message), one pass that reads, joins
-and scores in one thread without units or store, and `dispeval bag` with --jobs 1 and 2.
-Each is the best of --rounds, the rounds interleaved (the machine is shared: the load average
-is printed). Asserts nothing (machines are noisy).
+of each ground-truth map, scoring, building the unit rows and storing them, and hashing the
+scored streams for the provenance record; their sum is what one thread needs per frame,
+against what 0.5× the reader alone allows. Then the reader alone (the baseline: open, iterate
+and deserialise every message), one pass that reads, joins and scores in one thread without
+units, store or provenance, the pipeline (`evaluate_bags`: units, store) and the whole
+`dispeval bag` command (run in this process, kernels loaded: the pipeline plus the provenance
+digests, the CSV export and the summary), each with --jobs 1 and 2. Each is the best of
+--rounds, the rounds interleaved (the machine is shared: the load average is printed).
+Asserts nothing (machines are noisy).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import math
 import os
 import tempfile
@@ -24,16 +29,20 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from dispeval_ros.cli.main import main as dispeval
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import disparity_from_msg, gt_disparity, image_from_msg
 from dispeval_ros.io.store import FrameScores, ResultsStore, prepare_unit
 from dispeval_ros.offline.bag_eval import evaluate_bags
 from dispeval_ros.offline.make_bag import (
     GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
     bag_config,
     synthetic_frames,
     write_bag,
 )
+from dispeval_ros.offline.records import BagStreams
 from dispeval_ros.offline.units import keep_frames_on_the_heap, scoring_threads
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.testbed import default_methods
@@ -71,6 +80,20 @@ def one_pass(bag: Path, config: CoreConfig) -> None:
                 core.score(frame_set)
     for frame_set in core.flush():
         core.score(frame_set)
+
+
+def bag_command(bag: Path, out: Path, jobs: int) -> int:
+    """``dispeval bag`` on the bench's bag, its output muted; the matched method-frames."""
+    config = bag_config(METHODS)
+    argv = ["bag", str(bag), "--gt", GT_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO]
+    argv += [arg for item in config.methods.items() for arg in ("--method", "=".join(item))]
+    argv += ["--out", str(out), "--jobs", str(jobs), "--quiet", "--json"]
+    with contextlib.redirect_stdout(io.StringIO()):
+        if dispeval(argv) != 0:
+            raise SystemExit(f"dispeval bag failed: {' '.join(argv)}")
+    with ResultsStore.open(out) as store:
+        sequence = store.sequences()[0]
+        return sum(counts.matched for counts in store.match_counts(sequence).values())
 
 
 def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[float, str]]:
@@ -148,7 +171,17 @@ def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[f
         "partition": (best(rounds, partition) / frames * ms, "per frame"),
         "score": (best(rounds, score) / method_frames * ms, "per method-frame"),
         "unit rows + store": (best(rounds, store) / method_frames * ms, "per method-frame"),
+        "stream digests (provenance)": (
+            best(rounds, BagStreams([bag], config).compute) / gts_in_bag(bag) * ms,
+            "per frame",
+        ),
     }
+
+
+def gts_in_bag(bag: Path) -> int:
+    """Ground-truth frames in the bag."""
+    with BagSource(bag) as source:
+        return source.topics[GT_TOPIC].count
 
 
 def main() -> None:
@@ -196,6 +229,7 @@ def main() -> None:
 
     reader = one = math.inf
     pipeline = {1: math.inf, 2: math.inf}
+    command = {1: math.inf, 2: math.inf}
     frames = {1: 0, 2: 0}
     gts = 0
     for round_ in range(args.rounds):  # interleaved: a busy moment hurts every line alike
@@ -205,25 +239,29 @@ def main() -> None:
         one = min(one, best(1, lambda: one_pass(bag, config)))
         for jobs, seconds in pipeline.items():
             started = time.perf_counter()
-            with ResultsStore.create(root / f"out{jobs}-{round_}", {"jobs": jobs}) as store:
-                frames[jobs] = evaluate_bags([bag], config, store, jobs=jobs).frames
+            with ResultsStore.create(root / f"run{jobs}-{round_}", {"jobs": jobs}) as store:
+                evaluate_bags([bag], config, store, jobs=jobs)
             pipeline[jobs] = min(seconds, time.perf_counter() - started)
+            started = time.perf_counter()
+            frames[jobs] = bag_command(bag, root / f"out{jobs}-{round_}", jobs)
+            command[jobs] = min(command[jobs], time.perf_counter() - started)
     method_frames = gts * methods
     floor = method_frames / reader
     print(
         f"\nreader alone: {gts} frames in {reader:.2f} s: {floor:7.1f} method-frames/s (baseline)"
     )
     print(
-        f"read + join + score in one pass, one thread (no units, no store): {one:.2f} s: "
+        f"read + join + score in one pass, one thread (no units, store, provenance): {one:.2f} s: "
         f"{method_frames / one:7.1f} method-frames/s ({reader / one:.2f}× the reader alone)"
     )
-    for jobs, seconds in pipeline.items():
-        rate = frames[jobs] / seconds
-        print(
-            f"dispeval bag, --jobs {jobs}: {frames[jobs]} matched method-frames in {seconds:.2f} s: "
-            f"{rate:7.1f} method-frames/s ({rate / floor:.2f}× the reader alone, "
-            f"{one / seconds:.2f}× the one pass)"
-        )
+    for what, times in (("evaluate_bags", pipeline), ("the dispeval bag command", command)):
+        for jobs, seconds in times.items():
+            rate = frames[jobs] / seconds
+            print(
+                f"{what}, --jobs {jobs}: {frames[jobs]} matched method-frames in {seconds:.2f} s: "
+                f"{rate:7.1f} method-frames/s ({rate / floor:.2f}× the reader alone, "
+                f"{one / seconds:.2f}× the one pass)"
+            )
     load = " ".join(f"{value:.2f}" for value in os.getloadavg())
     print(f"load average after: {load}")
 
