@@ -12,8 +12,9 @@ and deserialise every message), one pass that reads, joins and scores in one thr
 units, store or provenance, the pipeline (`evaluate_bags`: units, store) and the whole
 `dispeval bag` command (run in this process, kernels loaded: the pipeline plus the provenance
 digests, the CSV export and the summary), each with --jobs 1 and 2. Each is the best of
---rounds, the rounds interleaved (the machine is shared: the load average is printed).
-Asserts nothing (machines are noisy).
+--rounds, the rounds interleaved (the machine is shared: the load average is printed, and
+--idle-cores N waits, up to a minute, for N idle cores before each timed run of the
+pipeline). Asserts nothing (machines are noisy).
 """
 
 from __future__ import annotations
@@ -60,6 +61,32 @@ def best(rounds: int, run: Callable[[], Any]) -> float:
         run()
         seconds = min(seconds, time.perf_counter() - started)
     return seconds
+
+
+def idle_cores(seconds: float = 1.0) -> float | None:
+    """Cores left idle over ``seconds`` (from /proc/stat; None where there is none)."""
+
+    def sample() -> tuple[int, int]:
+        with open("/proc/stat", encoding="ascii") as stat:
+            ticks = [int(value) for value in stat.readline().split()[1:]]
+        return ticks[3] + ticks[4], sum(ticks)  # idle + iowait, all
+
+    try:
+        idle, total = sample()
+        time.sleep(seconds)
+        idle_after, total_after = sample()
+    except OSError:
+        return None
+    return (os.cpu_count() or 1) * (idle_after - idle) / max(1, total_after - total)
+
+
+def wait_for_idle(cores: float, patience: float = 60.0) -> None:
+    """Wait until ``cores`` cores are idle (or ``patience`` seconds have passed)."""
+    deadline = time.perf_counter() + patience
+    while cores > 0 and time.perf_counter() < deadline:
+        idle = idle_cores()
+        if idle is None or idle >= cores:
+            return
 
 
 def read_all(bag: Path, config: CoreConfig) -> int:
@@ -191,6 +218,12 @@ def main() -> None:
     parser.add_argument("--storage", default="rosbag2-mcap")
     parser.add_argument("--bag", type=Path, help="reuse a bag this benchmark wrote before")
     parser.add_argument("--rounds", type=int, default=3, help="best of this many runs of each")
+    parser.add_argument(
+        "--idle-cores",
+        type=float,
+        default=0.0,
+        help="before each timed pipeline run, wait (up to 60 s) for this many idle cores",
+    )
     args = parser.parse_args()
     keep_frames_on_the_heap()  # as the pipeline does
     root = Path(tempfile.mkdtemp(prefix="dispeval-bench-"))
@@ -233,15 +266,18 @@ def main() -> None:
     frames = {1: 0, 2: 0}
     gts = 0
     for round_ in range(args.rounds):  # interleaved: a busy moment hurts every line alike
+        wait_for_idle(args.idle_cores)
         started = time.perf_counter()
         gts = read_all(bag, config)
         reader = min(reader, time.perf_counter() - started)
         one = min(one, best(1, lambda: one_pass(bag, config)))
         for jobs, seconds in pipeline.items():
+            wait_for_idle(args.idle_cores)
             started = time.perf_counter()
             with ResultsStore.create(root / f"run{jobs}-{round_}", {"jobs": jobs}) as store:
                 evaluate_bags([bag], config, store, jobs=jobs)
             pipeline[jobs] = min(seconds, time.perf_counter() - started)
+            wait_for_idle(args.idle_cores)
             started = time.perf_counter()
             frames[jobs] = bag_command(bag, root / f"out{jobs}-{round_}", jobs)
             command[jobs] = min(command[jobs], time.perf_counter() - started)
