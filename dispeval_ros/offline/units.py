@@ -12,13 +12,14 @@ folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frame
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import sys
 import threading
 import traceback
 from collections import Counter, OrderedDict
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -258,7 +259,7 @@ def close_scoring_pools() -> None:
         _pools.popitem()[1].shutdown(wait=True)
 
 
-def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Iterator[_T]:
+def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Generator[_T, None, None]:
     """``items`` taken on a thread of their own, up to ``depth`` ahead of the caller.
 
     Reading a bag (file reads, decompression, copies) then overlaps the scoring of the
@@ -338,9 +339,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         source = open_bag(unit.path)
         push_static_transforms(source, core)
         messages = source.messages(list(config.topics), read_from, read_to)
-        for topic, _, msg in read_ahead(messages):
-            result.messages += 1
-            handle(core.push(topic, msg))
+        with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
+            for topic, _, msg in ahead:
+                result.messages += 1
+                handle(core.push(topic, msg))
     except DispevalError as error:
         result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
     handle(core.flush())
