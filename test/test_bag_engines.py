@@ -390,17 +390,19 @@ def test_work_alongside_runs_on_a_thread_after_the_workers_fork_and_raises_last(
 ) -> None:
     """What runs alongside (the stream digests) starts once the pool forked; its error comes
     after every unit is written."""
-    contexts: list[str] = []
+    events: list[str] = []
     get_context = executors_module.multiprocessing.get_context
 
-    def recorded(method: str) -> object:
-        contexts.append(method)
+    def recorded(method: str) -> object:  # the pool is made here, its workers start right after
+        alive = any(t.name == "dispeval-alongside" for t in threading.enumerate())
+        events.append("pool made with the work running" if alive else "pool made")
         return get_context(method)
 
     monkeypatch.setattr(executors_module.multiprocessing, "get_context", recorded)
     threads: list[bool] = []
 
     def work() -> None:
+        events.append("work")
         threads.append(threading.current_thread() is not threading.main_thread())
         raise InputError("cannot read the messages for their sha256")
 
@@ -410,5 +412,5 @@ def test_work_alongside_runs_on_a_thread_after_the_workers_fork_and_raises_last(
             evaluate_bags(drives, config(), store, jobs=2, slice_ns=200_000_000, alongside=work)
         planned = units_module.plan_bag(drives[0], "north", config(), 200_000_000).units
         assert len(store.done_units("north")) == len(planned)
-    assert contexts == ["fork"]
+    assert events == ["pool made", "work"]
     assert threads == [True]
