@@ -2,44 +2,235 @@
 
     python bench/bench_bag.py [--frames 60] [--storage rosbag2-mcap] [--bag PATH] [--rounds 3]
 
-Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way), then times
-the reader alone (the baseline: iterate and deserialize every message), one pass that reads,
-joins and scores without units or store (what the pipeline adds is measured against it),
-`dispeval bag` in one process, and with --jobs 2, each the best of --rounds. Prints rates and
-ratios; asserts nothing (machines are noisy).
+Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way), or reuses
+--bag. First the cost of each stage on its own (per frame or per method-frame, in one thread):
+opening the bag, reading and deserialising, decoding the pixel buffers, joining, the partition
+of each ground-truth map, scoring, building the unit rows and storing them, and hashing the
+scored streams for the provenance record; their sum is what one thread needs per frame,
+against what 0.5× the reader alone allows. Then the reader alone (the baseline: open, iterate
+and deserialise every message), one pass that reads, joins and scores in one thread without
+units, store or provenance, the pipeline (`evaluate_bags`: units, store) and the whole
+`dispeval bag` command (run in this process, kernels loaded: the pipeline plus the provenance
+digests, the CSV export and the summary), each with --jobs 1 and 2. Each is the best of
+--rounds, the rounds interleaved (the machine is shared: the load average is printed, and
+--idle-cores N waits, up to a minute, for N idle cores before each timed run of the
+pipeline). Asserts nothing (machines are noisy).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import math
+import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import dispeval_ros
+from dispeval_ros.cli.main import main as dispeval
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.messages import disparity_from_msg, gt_disparity, image_from_msg
+from dispeval_ros.io.store import FrameScores, ResultsStore, prepare_unit
 from dispeval_ros.offline.bag_eval import evaluate_bags
 from dispeval_ros.offline.make_bag import (
     GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
     bag_config,
     synthetic_frames,
     write_bag,
 )
-from dispeval_ros.stream.core import EvaluationCore
+from dispeval_ros.offline.units import keep_frames_on_the_heap
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.testbed import default_methods
 
+try:  # absent before 2026-11 (this bench also times older versions: PYTHONPATH=old/checkout)
+    from dispeval_ros.offline.records import BagStreams
+except ImportError:  # pragma: no cover
+    BagStreams = None  # type: ignore[assignment,misc]
+
 METHODS = ("bm_fast", "sgbm", "sgbm_3way")
+STAGE_FRAMES = 20
+"""Frames held in memory to time the stages after reading (each holds ~7.5 MB of messages)."""
+
+
+def best(rounds: int, run: Callable[[], Any]) -> float:
+    """The shortest of ``rounds`` runs, in seconds."""
+    seconds = math.inf
+    for _ in range(rounds):
+        started = time.perf_counter()
+        run()
+        seconds = min(seconds, time.perf_counter() - started)
+    return seconds
+
+
+def idle_cores(seconds: float = 1.0) -> float | None:
+    """Cores left idle over ``seconds`` (from /proc/stat; None where there is none)."""
+
+    def sample() -> tuple[int, int]:
+        with open("/proc/stat", encoding="ascii") as stat:
+            ticks = [int(value) for value in stat.readline().split()[1:]]
+        return ticks[3] + ticks[4], sum(ticks)  # idle + iowait, all
+
+    try:
+        idle, total = sample()
+        time.sleep(seconds)
+        idle_after, total_after = sample()
+    except OSError:
+        return None
+    return (os.cpu_count() or 1) * (idle_after - idle) / max(1, total_after - total)
+
+
+def wait_for_idle(cores: float, patience: float = 60.0) -> None:
+    """Wait until ``cores`` cores are idle (or ``patience`` seconds have passed)."""
+    deadline = time.perf_counter() + patience
+    while cores > 0 and time.perf_counter() < deadline:
+        idle = idle_cores()
+        if idle is None or idle >= cores:
+            return
+
+
+def read_all(bag: Path, config: CoreConfig) -> int:
+    """The reader alone: open, iterate and deserialise every message; the GT frame count."""
+    gts = 0
+    with BagSource(bag) as source:
+        for topic, _, _ in source.messages(list(config.topics)):
+            gts += topic == GT_TOPIC
+    return gts
+
+
+def one_pass(bag: Path, config: CoreConfig) -> None:
+    """Read, join and score in one thread, without units or store."""
+    core = EvaluationCore(config)
+    with BagSource(bag) as source:
+        for topic, _, msg in source.messages(list(config.topics)):
+            for frame_set in core.push(topic, msg):
+                core.score(frame_set)
+    for frame_set in core.flush():
+        core.score(frame_set)
+
+
+def bag_command(bag: Path, out: Path, jobs: int) -> int:
+    """``dispeval bag`` on the bench's bag, its output muted; the matched method-frames."""
+    config = bag_config(METHODS)
+    argv = ["bag", str(bag), "--gt", GT_TOPIC, "--camera-info", LEFT_INFO, RIGHT_INFO]
+    argv += [arg for item in config.methods.items() for arg in ("--method", "=".join(item))]
+    argv += ["--out", str(out), "--jobs", str(jobs), "--quiet", "--json"]
+    with contextlib.redirect_stdout(io.StringIO()):
+        if dispeval(argv) != 0:
+            raise SystemExit(f"dispeval bag failed: {' '.join(argv)}")
+    with ResultsStore.open(out) as store:
+        sequence = store.sequences()[0]
+        return sum(counts.matched for counts in store.match_counts(sequence).values())
+
+
+def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[float, str]]:
+    """Each stage on its own, in this thread: name → (milliseconds, per what)."""
+    opened = best(rounds, lambda: BagSource(bag).close())
+    source = BagSource(bag)
+    messages: list[tuple[str, Any]] = []
+    for topic, _, msg in source.messages(list(config.topics)):
+        if topic == GT_TOPIC and sum(t == GT_TOPIC for t, _ in messages) == STAGE_FRAMES:
+            break
+        messages.append((topic, msg))
+    gts = sum(topic == GT_TOPIC for topic, _ in messages)
+    frames = min(gts, STAGE_FRAMES)
+    stop = len(messages)
+
+    def read() -> None:
+        for index, _ in enumerate(source.messages(list(config.topics))):
+            if index + 1 == stop:
+                break
+
+    reading = best(rounds, read)
+    source.close()
+    core = EvaluationCore(config)
+    frame_sets = [fs for topic, msg in messages for fs in core.push(topic, msg)]
+    frame_sets += core.flush()
+    frame_sets = frame_sets[:frames]
+    method_frames = sum(len(fs.estimates) for fs in frame_sets)
+
+    def join() -> None:
+        joiner = EvaluationCore(config)
+        for topic, msg in messages:
+            joiner.push(topic, msg)
+        joiner.flush()
+
+    def decode_frame(fs: Any) -> tuple[Any, Any, list[Any]]:
+        estimates = [disparity_from_msg(msg) for _, msg in fs.estimates.values()]
+        camera = core.camera(estimates[0].camera)
+        return gt_disparity(image_from_msg(fs.gt), "disparity", None, camera), camera, estimates
+
+    def decode() -> None:
+        for fs in frame_sets:  # each frame's arrays freed before the next, as in the pipeline
+            decode_frame(fs)
+
+    decoded = [decode_frame(fs) for fs in frame_sets]
+    evaluator = core.evaluator
+    references = [evaluator.reference(gt, camera) for gt, camera, _ in decoded]
+
+    def partition() -> None:
+        for gt, camera, _ in decoded:
+            evaluator.reference(gt, camera)
+
+    def score() -> list[FrameScores]:
+        return [
+            FrameScores(
+                "bench", fs.stamp, method, evaluator.score(ref, e.disparity, est_range=e.est_range)
+            )
+            for fs, ref, (_, _, estimates) in zip(frame_sets, references, decoded, strict=True)
+            for method, e in zip(fs.estimates, estimates, strict=True)
+        ]
+
+    rows = score()
+    root = Path(tempfile.mkdtemp(prefix="dispeval-bench-store-"))
+    stores = iter(range(rounds))
+
+    def store() -> None:
+        with ResultsStore.create(root / f"s{next(stores)}", {}) as results:
+            results.add_prepared(prepare_unit("bench", "000000", rows))
+
+    ms = 1e3
+    costs = {
+        "open the bag": (opened * ms, "per bag"),
+        "read + deserialise": (reading / frames * ms, "per frame"),
+        "decode pixels (estimates, GT)": (best(rounds, decode) / frames * ms, "per frame"),
+        "join": (best(rounds, join) / frames * ms, "per frame"),
+        "partition": (best(rounds, partition) / frames * ms, "per frame"),
+        "score": (best(rounds, score) / method_frames * ms, "per method-frame"),
+        "unit rows + store": (best(rounds, store) / method_frames * ms, "per method-frame"),
+    }
+    if BagStreams is not None:
+        digests = best(rounds, BagStreams([bag], config).compute)
+        costs["stream digests (provenance)"] = (digests / gts_in_bag(bag) * ms, "per frame")
+    return costs
+
+
+def gts_in_bag(bag: Path) -> int:
+    """Ground-truth frames in the bag."""
+    with BagSource(bag) as source:
+        return source.topics[GT_TOPIC].count
 
 
 def main() -> None:
-    """Write the bag, then time reading alone and the whole pipeline."""
+    """Write the bag, time each stage, then reading alone and the whole pipeline."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--storage", default="rosbag2-mcap")
     parser.add_argument("--bag", type=Path, help="reuse a bag this benchmark wrote before")
     parser.add_argument("--rounds", type=int, default=3, help="best of this many runs of each")
+    parser.add_argument(
+        "--idle-cores",
+        type=float,
+        default=0.0,
+        help="before each timed pipeline run, wait (up to 60 s) for this many idle cores",
+    )
     args = parser.parse_args()
+    keep_frames_on_the_heap()  # as the pipeline does
     root = Path(tempfile.mkdtemp(prefix="dispeval-bench-"))
     bag = args.bag or root / "drive"
     if args.bag is None:
@@ -56,53 +247,65 @@ def main() -> None:
             f"in {time.perf_counter() - started:.1f} s: {bag}"
         )
     config = bag_config(METHODS)
-    read_seconds = math.inf
-    for _ in range(args.rounds):
-        started = time.perf_counter()
-        count = gts = 0
-        with BagSource(bag) as source:
-            for topic, _, _ in source.messages(list(config.topics)):
-                count += 1
-                gts += topic == GT_TOPIC
-        read_seconds = min(read_seconds, time.perf_counter() - started)
-    method_frames = gts * len(METHODS)
-    print(
-        f"\nreader alone: {count} messages in {read_seconds:.2f} s: "
-        f"{method_frames / read_seconds:7.1f} method-frames/s (baseline)"
-    )
     with ResultsStore.create(root / "warm-up", {}) as store:  # compile (or load) the kernels first
         evaluate_bags([bag], config, store)
-    # the floor of the pipeline: one pass that reads, joins and scores, without units or store
-    pass_seconds = math.inf
-    for _ in range(args.rounds):
-        started = time.perf_counter()
-        core = EvaluationCore(config)
-        with BagSource(bag) as source:
-            for topic, _, msg in source.messages(list(config.topics)):
-                for frame_set in core.push(topic, msg):
-                    core.score(frame_set)
-        for frame_set in core.flush():
-            core.score(frame_set)
-        pass_seconds = min(pass_seconds, time.perf_counter() - started)
+    load = " ".join(f"{value:.2f}" for value in os.getloadavg())
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    print(f"{dispeval_ros.__file__}: {cores} cores, load average {load}")
+
+    costs = stage_costs(bag, config, args.rounds)
+    print(f"\nstage costs, one thread (best of {args.rounds}, first {STAGE_FRAMES} frames):")
+    for name, (value, per) in costs.items():
+        print(f"  {name:32s} {value:7.2f} ms {per}")
+    methods = len(METHODS)
+    per_frame = sum(v * (methods if p == "per method-frame" else 1) for v, p in costs.values())
+    per_frame -= costs["open the bag"][0]
+    reading = costs["read + deserialise"][0]
     print(
-        f"read + join + score in one pass (no units, no store): {pass_seconds:.2f} s: "
-        f"{method_frames / pass_seconds:7.1f} method-frames/s "
-        f"({read_seconds / pass_seconds:.2f}× the reader alone)"
+        f"  one thread needs {per_frame:.1f} ms per frame (+ the open); 0.5× the reader alone "
+        f"allows {2 * reading:.1f} ms per frame (+ the open)"
     )
-    for jobs in (1, 2):
-        seconds = math.inf
-        for round_ in range(args.rounds):
-            out = root / f"out{jobs}-{round_}"
+
+    reader = one = math.inf
+    pipeline = {1: math.inf, 2: math.inf}
+    command = {1: math.inf, 2: math.inf}
+    frames = {1: 0, 2: 0}
+    gts = 0
+    for round_ in range(args.rounds):  # interleaved: a busy moment hurts every line alike
+        wait_for_idle(args.idle_cores)
+        started = time.perf_counter()
+        gts = read_all(bag, config)
+        reader = min(reader, time.perf_counter() - started)
+        one = min(one, best(1, lambda: one_pass(bag, config)))
+        for jobs, seconds in pipeline.items():
+            wait_for_idle(args.idle_cores)
             started = time.perf_counter()
-            with ResultsStore.create(out, {"jobs": jobs}) as store:
-                report = evaluate_bags([bag], config, store, jobs=jobs)
-            seconds = min(seconds, time.perf_counter() - started)
-        rate = report.frames / seconds
-        print(
-            f"dispeval bag, --jobs {jobs}: {report.frames} matched method-frames in {seconds:.2f} s: "
-            f"{rate:7.1f} method-frames/s ({rate / (method_frames / read_seconds):.2f}× the reader "
-            f"alone, {pass_seconds / seconds:.2f}× the one pass)"
-        )
+            with ResultsStore.create(root / f"run{jobs}-{round_}", {"jobs": jobs}) as store:
+                evaluate_bags([bag], config, store, jobs=jobs)
+            pipeline[jobs] = min(seconds, time.perf_counter() - started)
+            wait_for_idle(args.idle_cores)
+            started = time.perf_counter()
+            frames[jobs] = bag_command(bag, root / f"out{jobs}-{round_}", jobs)
+            command[jobs] = min(command[jobs], time.perf_counter() - started)
+    method_frames = gts * methods
+    floor = method_frames / reader
+    print(
+        f"\nreader alone: {gts} frames in {reader:.2f} s: {floor:7.1f} method-frames/s (baseline)"
+    )
+    print(
+        f"read + join + score in one pass, one thread (no units, store, provenance): {one:.2f} s: "
+        f"{method_frames / one:7.1f} method-frames/s ({reader / one:.2f}× the reader alone)"
+    )
+    for what, times in (("evaluate_bags", pipeline), ("the dispeval bag command", command)):
+        for jobs, seconds in times.items():
+            rate = frames[jobs] / seconds
+            print(
+                f"{what}, --jobs {jobs}: {frames[jobs]} matched method-frames in {seconds:.2f} s: "
+                f"{rate:7.1f} method-frames/s ({rate / floor:.2f}× the reader alone, "
+                f"{one / seconds:.2f}× the one pass)"
+            )
+    load = " ".join(f"{value:.2f}" for value in os.getloadavg())
+    print(f"load average after: {load}")
 
 
 if __name__ == "__main__":

@@ -7,8 +7,9 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -17,6 +18,7 @@ from test_bag_pipeline import METHODS, bag_args, database_content
 from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.offline import executors as executors_module
 from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.bag_eval import RunReport, evaluate_bags
 from dispeval_ros.offline.dask_executor import DaskExecutor, check_worker
@@ -25,7 +27,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
-from dispeval_ros.offline.units import Unit, evaluate_unit
+from dispeval_ros.offline.units import Unit, UnitRows, evaluate_unit, read_ahead
 from dispeval_ros.stream.core import CoreConfig
 
 SLICE = ("--slice", "0.2")
@@ -179,11 +181,11 @@ def test_merge_of_two_halves_equals_the_whole_run(
     assert "tolerance_ns" in err
 
 
-def failing_on(name: str, action: Callable[[], None]) -> Callable[[CoreConfig, Unit], object]:
-    def evaluate(config: CoreConfig, unit: Unit) -> object:
+def failing_on(name: str, action: Callable[[], None]) -> Callable[[CoreConfig, Unit, int], object]:
+    def evaluate(config: CoreConfig, unit: Unit, threads: int = 1) -> object:
         if unit.sequence == "north" and unit.name == name:
             action()
-        return evaluate_unit(config, unit)
+        return evaluate_unit(config, unit, threads)
 
     return evaluate
 
@@ -216,11 +218,11 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError
 from dispeval_ros.offline import units
 evaluate, marker = units.evaluate_unit, Path(sys.argv[1])
-def dies_once(config, unit):
+def dies_once(config, unit, threads=1):
     if unit.sequence == "north" and unit.name == "000002" and not marker.exists():
         marker.touch()
         os._exit(1)
-    return evaluate(config, unit)
+    return evaluate(config, unit, threads)
 units.evaluate_unit = dies_once
 sys.exit(main(sys.argv[2:]))
 """
@@ -336,3 +338,79 @@ def test_auto_slices_follow_length_and_workers_and_resume_keeps_them(
         assert store.done_units("north") == done  # same plan with one worker: nothing new
     assert main(bag_command(drives[:1], tmp_path / "bad", "--slice", "-1")) == 2
     assert "--slice" in capsys.readouterr().err
+
+
+def test_scoring_threads_give_the_rows_of_one_thread(drives: list[Path]) -> None:
+    """A unit scored with its methods on threads: the very rows of one thread."""
+    plan = units_module.plan_bag(drives[0], "north", config(), 400_000_000)
+    for unit in plan.units:
+        alone = UnitRows.of(evaluate_unit(config(), unit, 1))
+        threaded = UnitRows.of(evaluate_unit(config(), unit, 3))
+        assert (threaded.frames, threaded.problems, threaded.messages) == (
+            alone.frames,
+            alone.problems,
+            alone.messages,
+        )
+        for rows in ("frame_rows", "problem_rows", "count_rows", "methods", "criteria"):
+            assert getattr(threaded.rows, rows) == getattr(alone.rows, rows), rows
+    assert sum(len(UnitRows.of(evaluate_unit(config(), u)).rows.frame_rows) for u in plan.units)
+    units_module.close_scoring_pools()
+
+
+def test_read_ahead_yields_in_order_and_raises_where_the_source_did() -> None:
+    def source() -> Iterator[int]:
+        yield from range(50)
+        raise InputError("bag is damaged after log time 49")
+
+    taken: list[int] = []
+    items = read_ahead(source(), depth=4)
+    with pytest.raises(InputError, match="after log time 49"):
+        taken.extend(items)
+    assert taken == list(range(50))
+
+
+def test_read_ahead_stops_its_thread_when_the_reader_stops() -> None:
+    produced: list[int] = []
+
+    def source() -> Iterator[int]:
+        for item in range(1000):
+            produced.append(item)
+            yield item
+
+    before = threading.active_count()
+    items = read_ahead(source(), depth=4)
+    assert next(items) == 0
+    items.close()  # e.g. scoring raised: the bag must not be read on by a stray thread
+    assert threading.active_count() == before
+    assert len(produced) <= 1 + 4 + 1  # the one taken, the queue, the one waiting to go in
+
+
+def test_work_alongside_runs_on_a_thread_after_the_workers_fork_and_raises_last(
+    drives: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What runs alongside (the stream digests) starts once the pool forked; its error comes
+    after every unit is written."""
+    events: list[str] = []
+    get_context = executors_module.multiprocessing.get_context
+
+    def recorded(method: str) -> object:  # the pool is made here, its workers start right after
+        alive = any(t.name == "dispeval-alongside" for t in threading.enumerate())
+        events.append("pool made with the work running" if alive else "pool made")
+        return get_context(method)
+
+    monkeypatch.setattr(executors_module.multiprocessing, "get_context", recorded)
+    threads: list[bool] = []
+
+    def work() -> None:
+        events.append("work")
+        threads.append(threading.current_thread() is not threading.main_thread())
+        raise InputError("cannot read the messages for their sha256")
+
+    record = {**config().as_record(), "slice_ns": 200_000_000}
+    with ResultsStore.create(tmp_path, record) as store:
+        with pytest.raises(InputError, match="sha256"):
+            evaluate_bags(drives, config(), store, jobs=2, slice_ns=200_000_000, alongside=work)
+        planned = units_module.plan_bag(drives[0], "north", config(), 200_000_000).units
+        assert len(store.done_units("north")) == len(planned)
+    assert events == ["pool made", "work"]
+    assert threads == [True]

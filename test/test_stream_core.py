@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from rosbags.typesys import Stores, get_typestore
 from sample_feed import bag_reference, expected_counts, robot_stream, sample_bag, sample_config
 
 from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC
-from dispeval_ros.stream.core import FrameResult
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.images import colour_error
+from dispeval_ros.stream.join import FrameSet
 from dispeval_ros.stream.replay import replay
 from dispeval_ros.stream.runner import LiveEvaluator
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
@@ -197,3 +201,60 @@ def test_replay_keeps_the_recorded_rate(sample: Path) -> None:
     )
     assert count == len(pushed) == 25
     assert now[0] == pytest.approx(2.4 / 2.0, rel=1e-6)  # 25 frames at 10 Hz span 2.4 s
+
+
+def _frame_of_three(broken: str) -> tuple[CoreConfig, FrameSet]:
+    """One joined frame of methods a, b, c; ``broken`` is ``method:defect``.
+
+    Defects: ``width`` (scoring fails), ``encoding`` (decoding fails).
+    """
+    broken_method, _, defect = broken.partition(":")
+    typestore = get_typestore(Stores.ROS2_HUMBLE)
+    rng = np.random.default_rng(7)
+    gt = rng.uniform(5.0, 40.0, (48, 64)).astype(np.float32)
+    stamp = 1_700_000_000_000_000_000
+    estimates = {}
+    for index, method in enumerate("abc"):
+        width = 60 if (method, defect) == (broken_method, "width") else 64
+        estimate = gt[:, :width] + rng.normal(0.0, 1.0 + index, (48, width)).astype(np.float32)
+        estimate[rng.random(estimate.shape) < 0.1] = -1.0  # invalid pixels
+        msg = disparity_to_msg(typestore, estimate, stamp, "l", 100.0, 0.5, 0.0, 63.0)
+        if (method, defect) == (broken_method, "encoding"):
+            msg.image.encoding = "16UC1"
+        estimates[method] = (stamp + index, msg)
+    config = CoreConfig(methods={m: f"/{m}" for m in "abc"}, gt_topic="/gt")
+    gt_msg = image_to_msg(typestore, gt, stamp, "l", "32FC1")
+    return config, FrameSet(stamp, gt_msg, estimates)
+
+
+@pytest.mark.parametrize("broken", ["a:encoding", "a:width", "b:width", "c:encoding", ""])
+def test_methods_scored_on_threads_give_the_result_of_one_thread(broken: str) -> None:
+    """Scores bit for bit, problems in method order, failed counts: as scored one by one."""
+    config, frame_set = _frame_of_three(broken)
+    alone = EvaluationCore(config, error_images=True)
+    expected = alone.score(frame_set)
+    with ThreadPoolExecutor(3) as pool:
+        threaded = EvaluationCore(config, error_images=True, executor=pool)
+        results = [threaded.score(frame_set) for _ in range(4)]
+    for result in results:
+        assert list(result.scores) == list(expected.scores)
+        for method, scores in expected.scores.items():
+            assert result.scores[method].sums.tobytes() == scores.sums.tobytes()
+            assert result.errors[method].tobytes() == expected.errors[method].tobytes()
+        assert result.estimate_stamps == expected.estimate_stamps
+        assert result.problems == expected.problems
+    assert {m: n * 4 for m, n in alone.failed.items()} == threaded.failed
+    failed = [p[0] for p in expected.problems]
+    if broken == "a:encoding":  # the first estimate gives the camera: without it the frame fails
+        assert list(expected.scores) == []
+        assert failed == [None]
+        assert "/a" in expected.problems[0][1]
+        assert alone.failed == {"a": 1, "b": 1, "c": 1}
+    elif broken:
+        method, _, defect = broken.partition(":")
+        assert list(expected.scores) == [m for m in "abc" if m != method]
+        assert failed == [method]
+        assert ("60" if defect == "width" else "16UC1") in expected.problems[0][1]
+    else:
+        assert list(expected.scores) == ["a", "b", "c"]
+        assert expected.problems == []

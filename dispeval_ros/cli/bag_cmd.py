@@ -107,7 +107,7 @@ def run_command(args: argparse.Namespace) -> int:
     """Evaluate, export, summarise."""
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import evaluate_bags
-    from dispeval_ros.offline.records import record_bag_provenance
+    from dispeval_ros.offline.records import BagStreams, record_bag_provenance
     from dispeval_ros.summary import summarize
 
     preset = protocol_eval.apply_stream_preset(args)
@@ -121,6 +121,7 @@ def run_command(args: argparse.Namespace) -> int:
         **preset,
     }
     progress = Progress("dispeval bag", enabled=not args.quiet)
+    digests = BagStreams(args.bags, config)  # hashed while the units run
     with ResultsStore.create(args.out, record, resume=args.resume) as store:
         report = evaluate_bags(
             args.bags,
@@ -130,11 +131,12 @@ def run_command(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             slice_ns=slice_ns,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
+            alongside=digests.compute,
         )
         rows = store.export_csv(args.out / "frames.csv")
         summary = summarize(store, args.objective_measures, args.objectives)
         problems = store.problems()
-        provenance = record_bag_provenance(store, args.bags, record, config)
+        provenance = record_bag_provenance(store, args.bags, record, config, digests)
     document = {**summary.to_dict(), "provenance": provenance}
     write_json(args.out / "summary.json", document)
     if args.json:

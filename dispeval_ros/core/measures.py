@@ -7,6 +7,7 @@ therefore exact: sums of sums, never averages of per-frame means.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -185,15 +186,19 @@ def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
     return scale * numerator / denominator if denominator > 0 else math.nan
 
 
-def _mean(field: int, scale: float = 1.0) -> Callable[[np.ndarray], float]:
+_Sums = np.ndarray | Sequence[float]
+"""One criterion's accumulator row (an array, or the same values as a list)."""
+
+
+def _mean(field: int, scale: float = 1.0) -> Callable[[_Sums], float]:
     return lambda sums: _ratio(sums[field], sums[k.FIELD_EVAL], scale)
 
 
-def _total(field: int) -> Callable[[np.ndarray], float]:
+def _total(field: int) -> Callable[[_Sums], float]:
     return lambda sums: float(sums[field])
 
 
-_FROM_SUMS: dict[str, Callable[[np.ndarray], float]] = {
+_FROM_SUMS: dict[str, Callable[[_Sums], float]] = {
     "bmp": _mean(k.FIELD_BAD, 100.0),
     "bmp_count": _total(k.FIELD_BAD),
     "mae": _mean(k.FIELD_SUM_E),
@@ -216,16 +221,45 @@ _FROM_SUMS: dict[str, Callable[[np.ndarray], float]] = {
 }
 
 
-def measure_from_sums(name: str, sums: np.ndarray, thresholds: np.ndarray) -> float:
+def measure_from_sums(name: str, sums: _Sums, thresholds: np.ndarray) -> float:
     """One measure of one criterion from its accumulated sums (``nan`` where undefined)."""
+    return float(_derivation(name, tuple(thresholds.tolist()))(sums))
+
+
+@functools.lru_cache(maxsize=256)
+def _derivation(name: str, thresholds: tuple[float, ...]) -> Callable[[_Sums], float]:
+    """How ``name`` is computed from a row of sums with these bad-x thresholds."""
     derive = _FROM_SUMS.get(name)
     if derive is not None:
-        return float(derive(sums))
+        return derive
     threshold = bad_threshold(name)
     if threshold is not None:
-        column = int(np.flatnonzero(thresholds[1:] == threshold)[0]) + 1
-        return _ratio(sums[k.FIELD_BAD + column], sums[k.FIELD_EVAL], 100.0)
+        return _mean(k.FIELD_BAD + thresholds.index(threshold, 1), 100.0)
     raise ConfigurationError(f"measure '{name}' is not derived from sums")
+
+
+_FROM_QUANTILES = None
+"""In :func:`_row_recipe`: the measure is a quantile (not derived from sums)."""
+
+
+@functools.lru_cache(maxsize=64)
+def _row_recipe(
+    measures: tuple[str, ...], thresholds: tuple[float, ...], gt_free: bool
+) -> tuple[tuple[str, Callable[[_Sums], float] | float | None], ...]:
+    """Per measure of a criterion's row: its derivation, :data:`_FROM_QUANTILES` or nan.
+
+    Nan where the measure does not apply (``gt_free``: the criterion is a ``gtfree:`` one).
+    """
+    criterion = GT_FREE_PREFIX if gt_free else ""
+    recipe: list[tuple[str, Callable[[_Sums], float] | float | None]] = []
+    for name in measures:
+        if not applies(name, criterion):
+            recipe.append((name, math.nan))
+        elif quantile_level(name) is not None:
+            recipe.append((name, _FROM_QUANTILES))
+        else:
+            recipe.append((name, _derivation(name, thresholds)))
+    return tuple(recipe)
 
 
 @dataclass
@@ -252,16 +286,21 @@ class Scores(Mapping[str, Mapping[str, float]]):
             if criterion not in self.criteria:
                 raise KeyError(criterion)
             index = self.criteria.index(criterion)
-            row = self.sums[index]
+            row = self.sums[index].tolist()  # Python floats: the same arithmetic, much faster
             values: dict[str, float] = {"n": float(row[k.FIELD_N])}
-            for name in self.measures:
-                if not applies(name, criterion):
-                    values[name] = math.nan
-                elif quantile_level(name) is not None:
+            recipe = _row_recipe(
+                self.measures,
+                tuple(self.thresholds.tolist()),
+                criterion.startswith(GT_FREE_PREFIX),
+            )
+            for name, derive in recipe:
+                if derive is _FROM_QUANTILES:
                     values[name] = self.quantiles.get(criterion, {}).get(name, math.nan)
+                elif callable(derive):
+                    values[name] = float(derive(row))
                 else:
-                    values[name] = measure_from_sums(name, row, self.thresholds)
-            values.setdefault("density", measure_from_sums("density", row, self.thresholds))
+                    values[name] = derive
+            values.setdefault("density", float(_FROM_SUMS["density"](row)))
             self._cache[criterion] = values
         return self._cache[criterion]
 

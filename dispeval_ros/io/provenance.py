@@ -72,11 +72,19 @@ def _raw_messages(path: Path, fmt: str, topics: Sequence[str]) -> Iterator[tuple
     return _raw_rosbags([path], topics)
 
 
-def stream_digests(bag: Path, topics: Sequence[str]) -> dict[str, dict[str, object]]:
-    """Per topic of ``bag``: ``{"sha256": hex, "messages": count}`` of its serialized messages."""
-    with BagSource(bag) as source:
-        fmt = source.format
-        wanted = [t for t in dict.fromkeys(topics) if t in source.topics]
+def stream_digests(
+    bag: Path, topics: Sequence[str], source: BagSource | None = None
+) -> dict[str, dict[str, object]]:
+    """Per topic of ``bag``: ``{"sha256": hex, "messages": count}`` of its serialized messages.
+
+    ``source``: the bag already open (its format and topics are taken from it, and the
+    messages read with a reader of their own).
+    """
+    if source is None:
+        with BagSource(bag) as opened:
+            return stream_digests(bag, topics, opened)
+    fmt = source.format
+    wanted = [t for t in dict.fromkeys(topics) if t in source.topics]
     digests = {topic: hashlib.sha256() for topic in wanted}
     counts = dict.fromkeys(wanted, 0)
     try:

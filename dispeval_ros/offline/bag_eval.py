@@ -11,6 +11,7 @@ dies is retried; after :data:`MAX_ATTEMPTS` it is stored as a problem of that un
 
 from __future__ import annotations
 
+import threading
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -88,6 +89,7 @@ def evaluate_bags(
     executor: Executor | None = None,
     slice_ns: int | None = DEFAULT_SLICE_NS,
     progress: Callable[[int, int, RunReport], None] | None = None,
+    alongside: Callable[[], None] | None = None,
 ) -> RunReport:
     """Evaluate every bag into ``store`` (units already done there are skipped).
 
@@ -95,19 +97,59 @@ def evaluate_bags(
     :func:`~dispeval_ros.offline.executors.make_executor`). ``slice_ns=None`` sizes each
     bag's units from its length and the number of workers (the choice is stored with the
     sequence, so a resumed run cuts the same units whatever its executor).
+
+    ``alongside`` runs on a thread of this process while the units run (see :class:`_Alongside`);
+    what it raises is raised once the units are written.
     """
     own = executor is None
     engine = make_executor(config, jobs, scheduler) if executor is None else executor
+    side = _Alongside(alongside)
     try:
         units, skipped = _plan(bags, config, store, slice_ns, engine.workers)
         engine.check(bags)
         report = RunReport(units_skipped=skipped)
-        _run(engine, units, store, report, progress)
+        _run(engine, units, store, report, progress, side.start)
+        side.finish()
     finally:
         if own:
             engine.close()
         close_bags()  # the driver's own, opened to plan
     return report
+
+
+class _Alongside:
+    """Work for the driver's spare time, on a thread started once the first units are submitted.
+
+    Not before: the process pool forks its workers at the first submission, and a process
+    with threads is not forked (see :class:`~dispeval_ros.offline.executors.PoolExecutor`).
+    """
+
+    def __init__(self, work: Callable[[], None] | None) -> None:
+        self.work = work
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+
+    def start(self) -> None:
+        """Start the work (once)."""
+        if self.work is not None and self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="dispeval-alongside")
+            self._thread.daemon = True  # a failed run does not wait for it
+            self._thread.start()
+
+    def _run(self) -> None:
+        assert self.work is not None
+        try:
+            self.work()
+        except BaseException as error:  # raised in the driver by finish()
+            self._error = error
+
+    def finish(self) -> None:
+        """Wait for the work (started now if no unit was submitted); raise what it raised."""
+        self.start()
+        if self._thread is not None:
+            self._thread.join()
+        if self._error is not None:
+            raise self._error
 
 
 def _plan(
@@ -153,8 +195,12 @@ def _run(
     store: ResultsStore,
     report: RunReport,
     progress: Callable[[int, int, RunReport], None] | None,
+    submitted: Callable[[], None],
 ) -> None:
-    """Submit within a window, retry failures, write each unit in plan order as it can be."""
+    """Submit within a window, retry failures, write each unit in plan order as it can be.
+
+    ``submitted`` is called after each round of submissions.
+    """
     window = max(1, engine.workers * WINDOW_PER_WORKER)
     pending = list(range(len(units)))[::-1]  # a stack: lowest index on top
     attempts: Counter[int] = Counter()
@@ -174,6 +220,7 @@ def _run(
             pending.pop()
             engine.submit(index, units[index])
             in_flight += 1
+        submitted()
         for index, outcome in engine.completed():
             in_flight -= 1
             alone = alone and in_flight > 0

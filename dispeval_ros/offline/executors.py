@@ -27,8 +27,10 @@ from dispeval_ros.offline.units import (
     UnitFailure,
     UnitRows,
     close_bags,
+    close_scoring_pools,
     forget_bags,
     run_unit,
+    scoring_threads,
 )
 from dispeval_ros.stream.core import CoreConfig
 
@@ -56,12 +58,16 @@ class Executor(Protocol):
 
 
 class InProcessExecutor:
-    """Runs each unit when asked for outcomes, in this process (bags stay open meanwhile)."""
+    """Runs each unit when asked for outcomes, in this process (bags stay open meanwhile).
+
+    Its frames are scored on as many threads as the process has cores, while it reads on.
+    """
 
     workers = 1
 
     def __init__(self, config: CoreConfig) -> None:
         self.config = config
+        self.threads = scoring_threads(1)
         self._queue: deque[tuple[int, Unit]] = deque()
 
     def check(self, paths: Sequence[Path]) -> None:
@@ -74,20 +80,24 @@ class InProcessExecutor:
     def completed(self) -> list[Outcome]:
         """Run the oldest queued unit here."""
         index, unit = self._queue.popleft()
-        return [(index, run_unit(self.config, unit))]
+        return [(index, run_unit(self.config, unit, self.threads))]
 
     def close(self) -> None:
-        """Close the bags this process opened."""
+        """Close the bags this process opened and stop its scoring threads."""
         close_bags()
+        close_scoring_pools()
 
 
 _worker_config: dict[str, CoreConfig] = {}
 """A pool worker's configuration, set once when it starts (not sent with every unit)."""
+_worker_threads: dict[str, int] = {}
+"""A pool worker's scoring threads (its share of the cores)."""
 
 
-def _start_worker(config: CoreConfig) -> None:
+def _start_worker(config: CoreConfig, threads: int) -> None:
     forget_bags()
     _worker_config["config"] = config
+    _worker_threads["threads"] = threads
     end_with_the_parent()
 
 
@@ -110,7 +120,7 @@ def end_with_the_parent() -> None:
 
 
 def _run_in_worker(unit: Unit) -> UnitRows | UnitFailure:
-    return run_unit(_worker_config["config"], unit)
+    return run_unit(_worker_config["config"], unit, _worker_threads["threads"])
 
 
 class PoolExecutor:
@@ -138,7 +148,7 @@ class PoolExecutor:
                 self.workers,
                 mp_context=multiprocessing.get_context(method),
                 initializer=_start_worker,
-                initargs=(self.config,),
+                initargs=(self.config, scoring_threads(self.workers)),
             )
         return self._pool
 

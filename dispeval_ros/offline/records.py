@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.io.provenance import stream_digests
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
+from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
 
 
@@ -19,22 +21,49 @@ def stream_topics(config: CoreConfig) -> list[str]:
     return list(dict.fromkeys(topics))
 
 
+class BagStreams:
+    """Each bag's scored streams and their digests (every scored message is read and hashed).
+
+    Hashing reads as much as the evaluation, so ``dispeval bag`` runs :meth:`compute`
+    alongside it (``evaluate_bags(..., alongside=streams.compute)``): the reads release the GIL
+    and so does sha256, so it takes what the scoring leaves of the cores.
+    """
+
+    def __init__(self, bags: Sequence[Path], config: CoreConfig) -> None:
+        self.topics = stream_topics(config)
+        self.bags = list(zip(bags, sequence_names(bags), strict=True))
+        self.sources = [open_bag(path) for path in bags]  # here: open_bag is not thread-safe
+        self.streams: dict[str, Any] | None = None
+
+    def compute(self) -> None:
+        """Read and hash every scored message of every bag."""
+        self.streams = {
+            sequence: {"bag": str(path), "topics": stream_digests(path, self.topics, source)}
+            for (path, sequence), source in zip(self.bags, self.sources, strict=True)
+        }
+
+    def record(self) -> dict[str, Any]:
+        """Sequence → its bag and per-topic digests (computed now if not yet)."""
+        if self.streams is None:
+            self.compute()
+        assert self.streams is not None
+        return self.streams
+
+
 def record_bag_provenance(
     store: ResultsStore,
     bags: Sequence[Path],
     configuration: Mapping[str, object],
     config: CoreConfig,
+    streams: BagStreams | None = None,
 ) -> dict[str, object]:
-    """Hash each bag's scored streams, store the record in ``store`` and return it.
+    """Hash each bag's scored streams (unless ``streams`` did), store the record and return it.
 
     ``inputs.streams`` maps each sequence to its bag and, per topic, the sha256 and the
     number of its serialized messages (see :func:`dispeval_ros.io.provenance.stream_digests`).
     """
-    topics = stream_topics(config)
-    streams = {
-        sequence: {"bag": str(path), "topics": stream_digests(path, topics)}
-        for path, sequence in zip(bags, sequence_names(bags), strict=True)
-    }
-    record = provenance_record(configuration, {"streams": streams})
+    if streams is None:
+        streams = BagStreams(bags, config)
+    record = provenance_record(configuration, {"streams": streams.record()})
     store.set_provenance(record)
     return record

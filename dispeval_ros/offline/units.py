@@ -12,14 +12,19 @@ folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frame
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import sys
+import threading
 import traceback
 from collections import Counter, OrderedDict
+from collections.abc import Generator, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from queue import Full, Queue
+from typing import Any, TypeVar
 
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
@@ -34,7 +39,10 @@ at least twice the margin a unit reads beyond each edge (so reading costs at mos
 UNITS_PER_WORKER = 4
 """``--slice auto`` cuts a bag into about this many units per worker (load balance)."""
 OPEN_BAGS_PER_PROCESS = 16
+READ_AHEAD = 16
+"""Messages read ahead of the scoring (a few frames: each holds its messages in memory)."""
 _FIRST, _LAST = -(2**62), 2**62
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -222,10 +230,89 @@ def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> Ba
 # -- running --------------------------------------------------------------------------------
 
 
-def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
-    """Read, join and score one slice; per-frame problems are recorded, never raised."""
+def scoring_threads(workers: int = 1) -> int:
+    """Threads that score a frame's methods in each of ``workers`` processes sharing the cores."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return max(1, cores // max(1, workers))
+
+
+_pools: dict[tuple[int, int], ThreadPoolExecutor] = {}
+
+
+def scoring_pool(threads: int) -> ThreadPoolExecutor | None:
+    """This process's pool of ``threads`` scoring threads, kept across units (None for one)."""
+    if threads <= 1:
+        return None
+    key = (os.getpid(), threads)  # a forked child makes its own: threads do not survive fork
+    pool = _pools.get(key)
+    if pool is None:
+        pool = _pools[key] = ThreadPoolExecutor(threads, thread_name_prefix="dispeval-score")
+    return pool
+
+
+def close_scoring_pools() -> None:
+    """Stop this process's scoring threads (a process with threads forks unsafely)."""
+    while _pools:
+        _pools.popitem()[1].shutdown(wait=True)
+
+
+def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Generator[_T, None, None]:
+    """``items`` taken on a thread of their own, up to ``depth`` ahead of the caller.
+
+    Reading a bag (file reads, decompression, copies) then overlaps the scoring of the
+    frames read before, which releases the GIL in its kernels. What ``items`` raises is
+    raised here at the same point of the sequence. The thread has stopped when this
+    generator ends or is closed, so the bag is never read by two threads at once.
+    """
+    queue: Queue[tuple[bool, Any]] = Queue(depth)
+    stop = threading.Event()
+
+    def put(entry: tuple[bool, Any]) -> bool:
+        while not stop.is_set():
+            try:
+                queue.put(entry, timeout=0.1)
+                return True
+            except Full:
+                continue
+        return False
+
+    def produce() -> None:
+        try:
+            for item in items:
+                if not put((True, item)):
+                    return
+        except BaseException as error:  # handed to the consumer, raised there
+            put((False, error))
+            return
+        put((False, None))
+
+    thread = threading.Thread(target=produce, name="dispeval-read", daemon=True)
+    thread.start()
+    try:
+        while True:
+            is_item, value = queue.get()
+            if is_item:
+                yield value
+            elif value is None:
+                return
+            else:
+                raise value
+    finally:
+        stop.set()
+        thread.join()
+
+
+def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResult:
+    """Read, join and score one slice; per-frame problems are recorded, never raised.
+
+    The bag is read ahead on a thread while frames are scored, each frame's methods on
+    ``threads`` threads (see :func:`scoring_pool`); the rows are the same as in one thread.
+    """
     result = UnitResult(unit)
-    core = EvaluationCore(config, keep_events=True)
+    core = EvaluationCore(config, keep_events=True, executor=scoring_pool(threads))
     inside = range(unit.start_ns, unit.stop_ns)
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
@@ -251,9 +338,11 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     try:
         source = open_bag(unit.path)
         push_static_transforms(source, core)
-        for topic, _, msg in source.messages(list(config.topics), read_from, read_to):
-            result.messages += 1
-            handle(core.push(topic, msg))
+        messages = source.messages(list(config.topics), read_from, read_to)
+        with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
+            for topic, _, msg in ahead:
+                result.messages += 1
+                handle(core.push(topic, msg))
     except DispevalError as error:
         result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
     handle(core.flush())
@@ -281,11 +370,11 @@ def evaluate_unit(config: CoreConfig, unit: Unit) -> UnitResult:
     return result
 
 
-def run_unit(config: CoreConfig, unit: Unit) -> UnitRows | UnitFailure:
+def run_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitRows | UnitFailure:
     """The rows of :func:`evaluate_unit`; anything unexpected is a failure to retry."""
     keep_frames_on_the_heap()
     try:
-        return UnitRows.of(evaluate_unit(config, unit))
+        return UnitRows.of(evaluate_unit(config, unit, threads))
     except Exception as error:  # a bug or exhaustion: the driver retries, then records it
         where = traceback.extract_tb(error.__traceback__)[-1]
         text = " ".join(str(error).split()) or type(error).__name__

@@ -11,12 +11,13 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from dispeval_ros.core import Camera, Evaluator, Partition, Scores
+from dispeval_ros.core import Camera, Evaluator, Partition, Reference, Scores
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
 from dispeval_ros.core.gtfree import (
     DEFAULT_GT_FREE_CRITERIA,
@@ -309,10 +310,18 @@ class EvaluationCore:
     """Join, score and report; call :meth:`push` for every message, :meth:`flush` at the end."""
 
     def __init__(
-        self, config: CoreConfig, *, keep_events: bool = False, error_images: bool = False
+        self,
+        config: CoreConfig,
+        *,
+        keep_events: bool = False,
+        error_images: bool = False,
+        executor: Executor | None = None,
     ) -> None:
         self.config = config
         self.error_images = error_images
+        self.executor = executor
+        """Where a frame's methods are scored side by side (threads: the kernels release the
+        GIL); None scores them one after the other. The results are the same."""
         self.evaluator = config.evaluator()
         self.gt_free = config.ground_truth_free()
         auxiliary = config.auxiliary()
@@ -384,10 +393,16 @@ class EvaluationCore:
                     self._count_failed(method)
                 return result
             return self._score_gt_free_only(frame_set, estimates, pair, result)
+        frames: dict[str, DisparityFrame | DispevalError] = {}
+        for method, (_, msg) in estimates.items():  # each decoded once
+            try:
+                frames[method] = disparity_from_msg(msg, self._topic(method))
+            except DispevalError as error:
+                frames[method] = error
         try:
-            first = disparity_from_msg(
-                next(iter(estimates.values()))[1], self._topic(next(iter(estimates)))
-            )
+            first = frames[next(iter(estimates))]
+            if isinstance(first, DispevalError):
+                raise first
             camera = self.camera(first.camera)
             if camera is None:  # scoring it would mix relative SZE into metric totals
                 raise CalibrationError(self._no_camera(first))
@@ -404,26 +419,51 @@ class EvaluationCore:
                 self._count_failed(method)
             result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
-        for method, (stamp, msg) in estimates.items():
-            topic = self._topic(method)
-            try:
-                frame = disparity_from_msg(msg, topic)
-                gt_scores = self.evaluator.score(
-                    reference, frame.disparity, est_range=frame.est_range
-                )
-                result.scores[method] = joined(
-                    gt_scores, self._gt_free_scores(method, frame, frame_set, pair, result)
-                )
-                result.estimate_stamps[method] = stamp
-                if self.error_images:
-                    result.errors[method] = self.evaluator.error_map(
-                        reference, frame.disparity, frame.est_range
-                    )
-                    result.partition = reference.partition
-            except DispevalError as error:
-                self._count_failed(method)
-                result.problems.append((method, f"{topic} at {stamp}: {error}"))
+        def score_method(method: str) -> FrameResult:
+            return self._score_method(method, frames[method], reference, frame_set, pair)
+
+        methods = list(estimates)
+        runs = (
+            self.executor.map(score_method, methods)
+            if self.executor is not None and len(methods) > 1
+            else map(score_method, methods)
+        )
+        for part in runs:  # in method order, whichever thread scored them
+            result.scores.update(part.scores)
+            result.estimate_stamps.update(part.estimate_stamps)
+            result.problems.extend(part.problems)
+            result.errors.update(part.errors)
+            result.partition = part.partition or result.partition
         return result
+
+    def _score_method(
+        self,
+        method: str,
+        frame: DisparityFrame | DispevalError,
+        reference: Reference,
+        frame_set: FrameSet[Any, Any],
+        pair: ImagePair | None,
+    ) -> FrameResult:
+        """One method's part of a frame's result (its scores, or its problem)."""
+        stamp = frame_set.estimates[method][0]
+        part = FrameResult(frame_set.stamp, {}, {})
+        try:
+            if isinstance(frame, DispevalError):
+                raise frame
+            gt_scores = self.evaluator.score(reference, frame.disparity, est_range=frame.est_range)
+            part.scores[method] = joined(
+                gt_scores, self._gt_free_scores(method, frame, frame_set, pair, part)
+            )
+            part.estimate_stamps[method] = stamp
+            if self.error_images:
+                part.errors[method] = self.evaluator.error_map(
+                    reference, frame.disparity, frame.est_range
+                )
+                part.partition = reference.partition
+        except DispevalError as error:
+            self._count_failed(method)
+            part.problems.append((method, f"{self._topic(method)} at {stamp}: {error}"))
+        return part
 
     def _no_camera(self, first: DisparityFrame) -> str:
         """Why a frame has no camera (f, B), and what gives it one."""
