@@ -153,50 +153,19 @@ def gather_estimate(
         out[k] = raw if valid else (raw if coded else -0.0)
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy", inline="always")
-def _disparity_terms(
-    raw: float, d: float, fb: float, depth_offset: float, delta: float, missing_weight: float
-) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
-    """One point's disparity-domain terms (weight, valid, e, e², rel, SZE, BMPRE, D1, bad)."""
-    weight = 1.0 if raw > 0.0 else missing_weight
-    value = abs(raw)
-    e = abs(value - d)
-    rel = e / d
-    return (
-        weight,
-        1.0 if raw > 0.0 else 0.0,
-        weight * e,
-        weight * e * e,
-        weight * rel,
-        weight * fb * e / abs((d + depth_offset) * (value + depth_offset)),
-        weight * rel if e > delta else 0.0,
-        weight if (e > 3.0 and e > 0.05 * d) else 0.0,
-        weight if e > delta else 0.0,
-    )
-
-
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def _cell_terms(
+def _disparity_sums(
     values: np.ndarray,
     gt: np.ndarray,
     fb: float,
     depth_offset: float,
-    mu: float,
     delta: float,
     missing_weight: float,
-    depth_terms: bool,
-) -> tuple[
-    float, float, float, float, float, float, float, float, float, float, float, float, float
-]:  # pragma: no cover
-    """Sums of one cell's terms; contiguous slices and no branches, so it vectorises.
+) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
+    """One cell's disparity-domain sums: valid, evaluated, e, e², rel, SZE, BMPRE, D1, bad.
 
-    Depth terms use ``Z = f·B / max(d + doffs, μ)``: exact for every point with
-    ``d + doffs ≥ μ``, and a missing estimate scored as 0 costs a large but finite depth.
-    They cost as much as all the others together (two more divisions per point), so they
-    are summed only when ``depth_terms`` (a depth-domain measure was asked for) and are 0
-    otherwise; the loop is chosen once per cell, not per point.
+    Contiguous slices and no branches, so it vectorises.
     """
-    doffs = depth_offset - mu
     n_valid = 0.0
     n_eval = 0.0
     sum_e = 0.0
@@ -206,61 +175,53 @@ def _cell_terms(
     bmpre = 0.0
     d1 = 0.0
     bad = 0.0
-    sum_ez = 0.0
-    sum_ez2 = 0.0
-    sum_relz = 0.0
-    sum_iz2 = 0.0
-    if depth_terms:
-        for k in range(values.shape[0]):
-            raw = np.float64(values[k])
-            d = np.float64(gt[k])
-            terms = _disparity_terms(raw, d, fb, depth_offset, delta, missing_weight)
-            n_eval += terms[0]
-            n_valid += terms[1]
-            sum_e += terms[2]
-            sum_e2 += terms[3]
-            sum_rel += terms[4]
-            sze += terms[5]
-            bmpre += terms[6]
-            d1 += terms[7]
-            bad += terms[8]
-            inverse_d = max(d + doffs, mu)  # f·B / Z of the GT
-            inverse_e = max(abs(raw) + doffs, mu)
-            ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
-            sum_ez += terms[0] * ez
-            sum_ez2 += terms[0] * ez * ez
-            sum_relz += terms[0] * abs(inverse_d - inverse_e) / inverse_e  # |Z_E − Z_D| / Z_D
-            iz = (inverse_e - inverse_d) / fb
-            sum_iz2 += terms[0] * iz * iz
-    else:
-        for k in range(values.shape[0]):
-            terms = _disparity_terms(
-                np.float64(values[k]), np.float64(gt[k]), fb, depth_offset, delta, missing_weight
-            )
-            n_eval += terms[0]
-            n_valid += terms[1]
-            sum_e += terms[2]
-            sum_e2 += terms[3]
-            sum_rel += terms[4]
-            sze += terms[5]
-            bmpre += terms[6]
-            d1 += terms[7]
-            bad += terms[8]
-    return (
-        n_valid,
-        n_eval,
-        sum_e,
-        sum_e2,
-        sum_rel,
-        sze,
-        bmpre,
-        d1,
-        bad,
-        sum_ez,
-        sum_ez2,
-        sum_relz,
-        sum_iz2,
-    )
+    for k in range(values.shape[0]):
+        raw = np.float64(values[k])
+        weight = 1.0 if raw > 0.0 else missing_weight
+        value = abs(raw)
+        d = np.float64(gt[k])
+        e = abs(value - d)
+        rel = e / d
+        n_valid += 1.0 if raw > 0.0 else 0.0
+        n_eval += weight
+        sum_e += weight * e
+        sum_e2 += weight * e * e
+        sum_rel += weight * rel
+        sze += weight * fb * e / abs((d + depth_offset) * (value + depth_offset))
+        bmpre += weight * rel if e > delta else 0.0
+        d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
+        bad += weight if e > delta else 0.0
+    return n_valid, n_eval, sum_e, sum_e2, sum_rel, sze, bmpre, d1, bad
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _depth_sums(
+    values: np.ndarray,
+    gt: np.ndarray,
+    fb: float,
+    depth_offset: float,
+    mu: float,
+    missing_weight: float,
+) -> tuple[float, float, float, float]:  # pragma: no cover
+    """One cell's depth-domain sums: Σ|Z_E − Z_D|, Σ(Z_E − Z_D)², Σ|Z_E − Z_D|/Z_D, Σ(1/Z_E − 1/Z_D)².
+
+    ``Z = f·B / max(d + doffs, μ)``: exact for every point with ``d + doffs ≥ μ``, and a
+    missing estimate scored as 0 costs a large but finite depth.
+    """
+    doffs = depth_offset - mu
+    sum_ez = sum_ez2 = sum_relz = sum_iz2 = 0.0
+    for k in range(values.shape[0]):
+        raw = np.float64(values[k])
+        weight = 1.0 if raw > 0.0 else missing_weight
+        inverse_d = max(np.float64(gt[k]) + doffs, mu)  # f·B / Z of the GT
+        inverse_e = max(abs(raw) + doffs, mu)
+        ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
+        sum_ez += weight * ez
+        sum_ez2 += weight * ez * ez
+        sum_relz += weight * abs(inverse_d - inverse_e) / inverse_e  # |Z_E − Z_D| / Z_D
+        iz = (inverse_e - inverse_d) / fb
+        sum_iz2 += weight * iz * iz
+    return sum_ez, sum_ez2, sum_relz, sum_iz2
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -295,7 +256,7 @@ def accumulate_cells(
     same (partition) order; ``offsets`` delimit the cells. ``depth_offset`` is
     ``doffs + μ``; the SZE term ``|f·B/(D+o) − f·B/(E+o)|`` is computed as the equal
     ``f·B·e / |(D+o)(E+o)|``, which has no cancellation; the depth-domain terms use ``μ`` only
-    as a floor of ``d + doffs`` (see :func:`_cell_terms`). ``thresholds[0]`` is δ (bmp,
+    as a floor of ``d + doffs`` (see :func:`_depth_sums`). ``thresholds[0]`` is δ (bmp,
     bmpre), the others the bad-x thresholds (``inf`` entries are unused).
     ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
     measures) and 1 otherwise. The depth-domain columns are summed only when
@@ -306,8 +267,8 @@ def accumulate_cells(
         stop = offsets[cell + 1]
         cell_values = values[start:stop]
         cell_gt = gt_sorted[start:stop]
-        terms = _cell_terms(
-            cell_values, cell_gt, fb, depth_offset, mu, thresholds[0], missing_weight, depth_terms
+        terms = _disparity_sums(
+            cell_values, cell_gt, fb, depth_offset, thresholds[0], missing_weight
         )
         row = sums[cell]
         row[FIELD_N] += stop - start
@@ -320,10 +281,12 @@ def accumulate_cells(
         row[FIELD_BMPRE] += terms[6]
         row[FIELD_D1] += terms[7]
         row[FIELD_BAD] += terms[8]
-        row[FIELD_SUM_EZ] += terms[9]
-        row[FIELD_SUM_EZ2] += terms[10]
-        row[FIELD_SUM_RELZ] += terms[11]
-        row[FIELD_SUM_IZ2] += terms[12]
+        if depth_terms:  # as costly as all the others (two more divisions per point)
+            depth = _depth_sums(cell_values, cell_gt, fb, depth_offset, mu, missing_weight)
+            row[FIELD_SUM_EZ] += depth[0]
+            row[FIELD_SUM_EZ2] += depth[1]
+            row[FIELD_SUM_RELZ] += depth[2]
+            row[FIELD_SUM_IZ2] += depth[3]
         for t in range(1, thresholds.shape[0]):
             if thresholds[t] < np.inf:
                 row[FIELD_BAD + t] += _bad_count(
