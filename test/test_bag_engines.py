@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_bag_pipeline import METHODS, bag_args, database_content
 
@@ -208,7 +209,29 @@ def test_a_unit_that_always_raises_is_a_problem_of_that_unit(
         assert problem.sequence == "north"
         assert "unit 000003 failed 3 times" in problem.message
         assert "out of cheese" in problem.message
-        assert "000003" in store.done_units("north")
+        assert "000003" not in store.done_units("north")  # so --resume tries it again
+        assert store.failed_units("north") == {"000003"}
+    # a resume that fails again replaces the failure record (one problem, the newest)
+    assert main(bag_command(drives, tmp_path, "--resume")) == 0
+    assert "1 unit(s) that had failed before tried again" in capsys.readouterr().out
+    with ResultsStore.open(tmp_path) as store:
+        assert len(store.problems()) == 1
+    # the cause gone, --resume evaluates the unit and drops its failure record
+    monkeypatch.setattr(units_module, "evaluate_unit", evaluate_unit)
+    assert main(bag_command(drives, tmp_path, "--resume")) == 0
+    assert "1 unit(s) that had failed before tried again" in capsys.readouterr().out
+    with ResultsStore.open(tmp_path) as store, ResultsStore.open(reference) as expected:
+        assert store.problems() == []
+        assert store.failed_units("north") == set()
+        for sequence in expected.sequences():
+            assert store.done_units(sequence) == expected.done_units(sequence)
+            assert store.stamps(sequence) == expected.stamps(sequence)
+            for stamp in expected.stamps(sequence):
+                ours, theirs = (s.frame_scores(sequence, stamp) for s in (store, expected))
+                assert ours.keys() == theirs.keys()
+                for method, scores in theirs.items():
+                    np.testing.assert_array_equal(ours[method].sums, scores.sums)
+            assert store.match_counts(sequence) == expected.match_counts(sequence)
 
 
 DIE_ONCE = """

@@ -36,6 +36,7 @@ from dispeval_ros.io.store import (
     MatchCounts,
     Problem,
     ResultsStore,
+    failure_record,
 )
 from dispeval_ros.ros.params import ros_advice
 
@@ -378,6 +379,31 @@ def test_a_failing_unit_leaves_nothing(tmp_path: Path) -> None:
         with pytest.raises(ConfigurationError, match="measures"):
             store.add_unit("s", "2", odd)
         assert dump(tmp_path) == before
+
+
+def test_a_failure_record_keeps_its_unit_undone_and_is_replaced(tmp_path: Path) -> None:
+    """A unit that failed every attempt is recorded under failure_record(unit): its problem
+    is kept, the unit stays undone (a resume retries it); a newer failure replaces the
+    record, the unit written drops it, and a record of a done unit is a no-op."""
+    frames = frames_of("s", range(2))
+
+    def failure(message: str) -> None:
+        store.add_unit("s", failure_record("1"), [], [Problem("s", None, None, message)])
+
+    with ResultsStore.create(tmp_path, CONFIG) as store:
+        store.add_unit("s", "0", frames[:3])
+        failure("unit 1 failed 3 times: first")
+        assert store.done_units("s") == {"0"}
+        assert store.failed_units("s") == {"1"}
+        failure("unit 1 failed 3 times: second")
+        assert [p.message for p in store.problems()] == ["unit 1 failed 3 times: second"]
+        store.add_unit("s", "1", frames[3:])
+        assert store.done_units("s") == {"0", "1"}
+        assert store.failed_units("s") == set()
+        assert store.problems() == []
+        failure("a late record of a unit written meanwhile")
+        assert store.failed_units("s") == set()
+        assert store.problems() == []
 
 
 # ------------------------------------------------------------------------------ create / open

@@ -150,6 +150,11 @@ def run_command(args: argparse.Namespace) -> int:
         f"this run: {report.units_done} units, {report.frames} method-frames, "
         f"{report.messages} messages read"
         + (f", {report.retries} unit(s) retried" if report.retries else "")
+        + (
+            f", {report.failed_before} unit(s) that had failed before tried again"
+            if report.failed_before
+            else ""
+        )
     )
     if preset:
         print(protocol_eval.preset_note(args.protocol))

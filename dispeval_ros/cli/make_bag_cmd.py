@@ -82,7 +82,9 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.testbed.lidar import LidarModel
 
     if not (args.frames >= 1 and math.isfinite(args.fps) and args.fps > 0):
-        raise ConfigurationError(f"need --frames ≥ 1 and --fps > 0, got {args.frames}, {args.fps:g}")
+        raise ConfigurationError(
+            f"need --frames ≥ 1 and --fps > 0, got {args.frames}, {args.fps:g}"
+        )
     if not (64 <= args.width <= MAX_SIDE and 32 <= args.height <= MAX_SIDE):
         raise ConfigurationError(
             f"--width must be in 64..{MAX_SIDE} and --height in 32..{MAX_SIDE}, got "

@@ -101,8 +101,7 @@ def read_table(
         methods, objectives, matrix = objective_table(store, measures, granularity)
     if not objectives:
         raise InputError(
-            f"{results}: no objectives: fewer than two methods, or no frame every method "
-            "delivered"
+            f"{results}: no objectives: fewer than two methods, or no frame every method delivered"
         )
     return methods, objectives, matrix
 

@@ -39,8 +39,6 @@ def shared_file_candidates(relative: str) -> list[Path]:
         files = []
     suffix = f"{PACKAGE}/{relative}"
     found.extend(
-        Path(str(file.locate()))
-        for file in files
-        if str(file).replace("\\", "/").endswith(suffix)
+        Path(str(file.locate())) for file in files if str(file).replace("\\", "/").endswith(suffix)
     )
     return found

@@ -30,6 +30,8 @@ RESULTS_FILE = "results.sqlite"
 APPLICATION_ID = 0x44737045
 """``"DspE"`` in the SQLite header: tells a dispeval results database from any other."""
 SCHEMA_VERSION = 1
+FAILED_MARK = "!failed"
+"""Suffix of the record a unit that failed every attempt leaves (see :func:`failure_record`)."""
 _BLOB = np.dtype("<f8")  # accumulator rows are stored little-endian whatever the machine
 _FIXED_COLUMNS = ("sequence", "stamp", "method", "criterion", "n", "sums", "relative")
 
@@ -52,6 +54,16 @@ _SCHEMA = (
     "ordinal INTEGER NOT NULL, matched INTEGER NOT NULL, unmatched INTEGER NOT NULL, "
     "dropped INTEGER NOT NULL, failed INTEGER NOT NULL, PRIMARY KEY (sequence, method))",
 )
+
+
+def failure_record(unit: str) -> str:
+    """The unit name under which a unit that failed every attempt is recorded.
+
+    The record holds the failure's problem and no frames; the unit itself stays undone, so a
+    resumed run tries it again, and writing it (or a newer failure) replaces the record.
+    """
+    return unit + FAILED_MARK
+
 
 _ADD_COUNTS = (
     "INSERT INTO match_counts "
@@ -319,9 +331,14 @@ class ResultsStore:
         return row is not None
 
     def done_units(self, sequence: str) -> set[str]:
-        """The units of a sequence that were completely written."""
+        """The units of a sequence that were completely written (failure records aside)."""
         rows = self._db.execute("SELECT unit FROM units WHERE sequence = ?", (sequence,))
-        return {unit for (unit,) in rows}
+        return {unit for (unit,) in rows if not unit.endswith(FAILED_MARK)}
+
+    def failed_units(self, sequence: str) -> set[str]:
+        """The units of a sequence whose last run failed every attempt (a resume retries them)."""
+        rows = self._db.execute("SELECT unit FROM units WHERE sequence = ?", (sequence,))
+        return {unit[: -len(FAILED_MARK)] for (unit,) in rows if unit.endswith(FAILED_MARK)}
 
     def add_unit(
         self,
@@ -337,21 +354,31 @@ class ResultsStore:
         leave half a unit, and adding it again after a resume changes nothing.
         """
         self._require_writable()
-        if self.is_done(sequence, unit):
+        if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
         self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts))
+
+    def _written(self, sequence: str, unit: str, failure: bool) -> bool:
+        """Whether writing ``unit`` is a no-op: it is done (a failure record: its unit is)."""
+        return self.is_done(sequence, unit[: -len(FAILED_MARK)] if failure else unit)
 
     def add_prepared(self, prepared: PreparedUnit) -> None:
         """:meth:`add_unit` of rows made by :func:`prepare_unit` (e.g. on another machine)."""
         self._require_writable()
         sequence, unit, layout = prepared.sequence, prepared.unit, prepared.layout
-        if self.is_done(sequence, unit):
+        failure = unit.endswith(FAILED_MARK)
+        if self._written(sequence, unit, failure):
             return
         frame_rows, methods, criteria = prepared.frame_rows, prepared.methods, prepared.criteria
         problem_rows, count_rows = prepared.problem_rows, prepared.count_rows
         with self._transaction():
-            if self.is_done(sequence, unit):  # again, now under the write lock
+            if self._written(sequence, unit, failure):  # again, now under the write lock
                 return
+            record = unit if failure else failure_record(unit)  # an earlier failure's record
+            for table in ("problems", "units"):
+                self._db.execute(
+                    f"DELETE FROM {table} WHERE sequence = ? AND unit = ?", (sequence, record)
+                )
             if layout is not None:
                 self._use_layout(layout)
             self._register_sequence(sequence)

@@ -6,7 +6,8 @@ cluster) and is the only writer of the results database. Each unit is written in
 transaction with its match counts, in plan order as soon as it and the units before it are
 back, so any engine gives the same database, a killed run loses at most the units in flight
 and ``--resume`` continues without duplicating anything. A unit that raises or whose worker
-dies is retried; after :data:`MAX_ATTEMPTS` it is stored as a problem of that unit.
+dies is retried; after :data:`MAX_ATTEMPTS` its problem is stored as the unit's failure record,
+which ``--resume`` replaces by trying the unit again.
 """
 
 from __future__ import annotations
@@ -77,6 +78,8 @@ class RunReport:
     problems: int = 0
     messages: int = 0
     retries: int = 0
+    failed_before: int = 0
+    """Units an earlier run had given up on (failure records), tried again by this one."""
 
 
 def evaluate_bags(
@@ -105,9 +108,9 @@ def evaluate_bags(
     engine = make_executor(config, jobs, scheduler) if executor is None else executor
     side = _Alongside(alongside)
     try:
-        units, skipped = _plan(bags, config, store, slice_ns, engine.workers)
+        units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers)
         engine.check(bags)
-        report = RunReport(units_skipped=skipped)
+        report = RunReport(units_skipped=skipped, failed_before=failed_before)
         _run(engine, units, store, report, progress, side.start)
         side.finish()
     finally:
@@ -158,10 +161,14 @@ def _plan(
     store: ResultsStore,
     slice_ns: int | None,
     workers: int,
-) -> tuple[list[Unit], int]:
-    """Every unit not stored yet, in plan order (and how many were stored before)."""
+) -> tuple[list[Unit], int, int]:
+    """Every unit not stored yet, in plan order, with two counts.
+
+    How many were stored before, and how many of the planned ones an earlier run gave up on
+    (they are tried again).
+    """
     units: list[Unit] = []
-    skipped = 0
+    skipped = failed_before = 0
     for path, sequence in zip(bags, sequence_names(bags), strict=True):
         chosen = slice_ns
         if chosen is None:
@@ -175,8 +182,9 @@ def _plan(
         store.set_sequence(sequence, str(path), info)
         done = store.done_units(sequence)
         skipped += len(done)
+        failed_before += len(store.failed_units(sequence) - done)
         units.extend(unit for unit in plan.units if unit.name not in done)
-    return units, skipped
+    return units, skipped, failed_before
 
 
 def _stored_slice(store: ResultsStore, sequence: str) -> int | None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import os
 import sys
 import threading
@@ -28,7 +29,14 @@ from typing import Any, TypeVar
 
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
-from dispeval_ros.io.store import FrameScores, MatchCounts, PreparedUnit, Problem, prepare_unit
+from dispeval_ros.io.store import (
+    FrameScores,
+    MatchCounts,
+    PreparedUnit,
+    Problem,
+    failure_record,
+    prepare_unit,
+)
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.stream.join import FrameSet
 
@@ -385,11 +393,15 @@ def run_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitRows | Uni
 
 
 def failed_result(failure: UnitFailure, attempts: int) -> UnitRows:
-    """What is stored for a unit that failed every attempt: one problem, no frames."""
+    """What is stored for a unit that failed every attempt: one problem, no frames.
+
+    It is stored as the unit's failure record (:func:`failure_record`), so ``--resume``
+    tries the unit again.
+    """
     unit = failure.unit
     return UnitRows.of(
         UnitResult(
-            unit,
+            dataclasses.replace(unit, name=failure_record(unit.name)),
             problems=[
                 Problem(
                     unit.sequence,

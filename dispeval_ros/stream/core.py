@@ -419,6 +419,7 @@ class EvaluationCore:
                 self._count_failed(method)
             result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
+
         def score_method(method: str) -> FrameResult:
             return self._score_method(method, frames[method], reference, frame_set, pair)
 
@@ -474,7 +475,6 @@ class EvaluationCore:
             f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected finite "
             "and > 0); give the CameraInfo topics to take the camera from them"
         )
-
 
     # -- ground-truth-free measures ---------------------------------------------------------
 

@@ -73,7 +73,9 @@ def read_delivery(record: StatusRecord) -> Delivery | None:
             counts={method: MethodCounts(**fields) for method, fields in counts.items()},
         )
     except (KeyError, ValueError, TypeError) as error:
-        raise InputError(f"a malformed delivery record from {record.hardware_id}: {error}") from None
+        raise InputError(
+            f"a malformed delivery record from {record.hardware_id}: {error}"
+        ) from None
 
 
 @dataclass
