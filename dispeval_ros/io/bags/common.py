@@ -82,6 +82,37 @@ class Backend(Protocol):
     def close(self) -> None: ...
 
 
+def decoded_messages(
+    path: Path,
+    what: str,
+    stream: Iterator[tuple[str, int, Any]],
+    decode: Callable[[Any], Any],
+    on_error: Callable[[InputError], None] | None,
+) -> Iterator[MessageTuple]:
+    """``(topic, log_ns, payload)`` of a reader's ``stream`` with each payload decoded.
+
+    A reading error ends the stream as one line (``what``, e.g. "bag", is damaged after the
+    last log time read); a payload that cannot be decoded goes to :func:`decode_failed`.
+    """
+    last: int | None = None
+    while True:
+        try:
+            item = next(stream, None)
+        except Exception as exc:
+            where = "" if last is None else f" after log time {last} ns"
+            raise InputError(f"{path}: {what} is damaged{where} ({one_line(exc)})") from None
+        if item is None:
+            return
+        topic, log_ns, payload = item
+        last = log_ns
+        try:
+            msg = decode(payload)
+        except Exception as exc:
+            decode_failed(path, topic, log_ns, exc, on_error)
+            continue
+        yield topic, log_ns, msg
+
+
 def decode_failed(
     path: Path,
     topic: str,

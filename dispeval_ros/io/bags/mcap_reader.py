@@ -18,6 +18,7 @@ from dispeval_ros.io.bags.common import (
     MessageTuple,
     TopicInfo,
     decode_failed,
+    decoded_messages,
     one_line,
     ros2_type,
 )
@@ -212,25 +213,13 @@ class McapBackend:
         else:  # pragma: no cover - old mcap
             window = {"start_time": start_ns, "end_time": stop_ns}
         stream = self._reader.iter_messages(topics=list(topics), **window)
-        last: int | None = None
-        while True:
-            try:
-                item = next(stream, None)
-            except Exception as exc:
-                where = "" if last is None else f" after log time {last} ns"
-                raise InputError(
-                    f"{self.path}: MCAP file is damaged{where} ({one_line(exc)})"
-                ) from None
-            if item is None:
-                return
-            schema, channel, message = item
-            last = message.log_time
-            try:
-                msg = self._decode(schema, channel, message.data)
-            except Exception as exc:
-                decode_failed(self.path, channel.topic, message.log_time, exc, on_error)
-                continue
-            yield channel.topic, message.log_time, msg
+        payloads = (
+            (channel.topic, message.log_time, (schema, channel, message.data))
+            for schema, channel, message in stream
+        )
+        yield from decoded_messages(
+            self.path, "MCAP file", payloads, lambda item: self._decode(*item), on_error
+        )
 
     def _scanned_messages(
         self,

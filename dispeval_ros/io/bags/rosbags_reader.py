@@ -11,6 +11,7 @@ from dispeval_ros.io.bags.common import (
     MessageTuple,
     TopicInfo,
     decode_failed,
+    decoded_messages,
     one_line,
     ros2_type,
 )
@@ -60,23 +61,13 @@ class RosbagsBackend:
         if not connections:
             return
         stream = reader.messages(connections, start=start_ns, stop=stop_ns)
-        last: int | None = None
-        while True:
-            try:
-                item = next(stream, None)
-            except Exception as exc:
-                where = "" if last is None else f" after log time {last} ns"
-                raise InputError(f"{self.path}: bag is damaged{where} ({one_line(exc)})") from None
-            if item is None:
-                return
-            connection, log_ns, raw = item
-            last = log_ns
-            try:
-                msg = reader.deserialize(raw, connection.msgtype)
-            except Exception as exc:
-                decode_failed(self.path, connection.topic, log_ns, exc, on_error)
-                continue
-            yield connection.topic, log_ns, msg
+        payloads = (
+            (connection.topic, log_ns, (raw, connection.msgtype))
+            for connection, log_ns, raw in stream
+        )
+        yield from decoded_messages(
+            self.path, "bag", payloads, lambda item: reader.deserialize(*item), on_error
+        )
 
     def close(self) -> None:
         if self._reader.stack is not None:
