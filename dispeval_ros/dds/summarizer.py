@@ -40,7 +40,7 @@ from dispeval_ros.dds.wire import (
     SUMMARIZER_INPUT,
 )
 from dispeval_ros.errors import InputError
-from dispeval_ros.stream.delivery import Delivery, DeliveryLedger, read_delivery
+from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.vectors import read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
@@ -77,9 +77,8 @@ class DdsSummarizer:
         self._lock = threading.Condition()
         self._stamps: set[int] = set()
         self._newest: int | None = None
-        self._problems: list[tuple[int | None, str | None, str]] = []
-        """Problems of the current sequence, booked with its counts when it closes."""
-        self._ledger = DeliveryLedger()
+        self._book = CountsBook()
+        """Counts and problems of the current sequence, booked when it closes."""
         self.received = 0
         self.ignored = 0
         self.frames = 0
@@ -139,9 +138,9 @@ class DdsSummarizer:
                     self.core.new_sequence()
                     self._stamps.clear()
                     self._newest = None
-                self._problems.extend((stamp, method, text) for method, text in problems or ())
+                self._book.problems.extend((stamp, method, text) for method, text in problems or ())
             for delivery in deliveries or ():
-                self._ledger.add(delivery, scores)
+                self._book.ledger.add(delivery, scores)
             if scores:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
@@ -214,7 +213,7 @@ class DdsSummarizer:
         self.thread.stop(drain=True)
         with self._lock:
             if final is not None:
-                self._ledger.add(final)
+                self._book.ledger.add(final)
             if self.frames:
                 self._book_counts(closing=True)
             summary = self.core.finish()
@@ -225,10 +224,7 @@ class DdsSummarizer:
 
     def _book_counts(self, *, closing: bool) -> None:
         """The evaluator's counts and problems of the current sequence (under the lock)."""
-        counts, messages = self._ledger.checkpoint(closing=closing)
-        problems = [*self._problems, *((None, None, text) for text in messages)]
-        self._problems = []
-        self.core.add_counts(counts, problems)
+        self.core.add_counts(*self._book.checkpoint(closing=closing))
 
     def status(self) -> dict[str, Any]:
         """Counters for a status line."""

@@ -42,7 +42,7 @@ from dispeval_ros.ros.params import (
     run_node,
     summarizer_options,
 )
-from dispeval_ros.stream.delivery import DeliveryLedger, read_delivery
+from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.vectors import read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
@@ -87,8 +87,7 @@ class SummarizerNode(Node):
         self._finished = False
         self._received = 0
         self._last_stamp = 0
-        self._ledger = DeliveryLedger()
-        self._problems: list[tuple[int | None, str | None, str]] = []
+        self._book = CountsBook()
         self.groups_acknowledged: bool | None = None
         """Whether subscribers acknowledged the final groups (None before shutdown)."""
         self._groups_pub = self.create_publisher(DiagnosticArray, GROUPS_TOPIC, GROUPS_QOS)
@@ -138,14 +137,14 @@ class SummarizerNode(Node):
             if self._finished:
                 return
             for delivery in deliveries:
-                self._ledger.add(delivery, frame)
-            self._problems.extend(problems)
+                self._book.ledger.add(delivery, frame)
+            self._book.problems.extend(problems)
             if not frame:
                 return
             try:
                 summary = self._core.add(stamp, frame)
             except DispevalError as error:
-                self._problems.append((stamp, None, f"cannot store the frame: {error}"))
+                self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(
                     f"cannot store the frame at {stamp} ns: {error}",
                     throttle_duration_sec=LOG_PERIOD,
@@ -222,7 +221,7 @@ class SummarizerNode(Node):
                 self.get_logger().warning(f"cannot wait for the final groups: {error!r}")
                 acked = False
             self.groups_acknowledged = bool(acked)
-        lost = self._ledger.lost_arrays()
+        lost = self._book.ledger.lost_arrays()
         if lost:
             self.get_logger().warning(
                 f"{lost} scored frame(s) never arrived (counted as dropped in {out})"
@@ -230,10 +229,7 @@ class SummarizerNode(Node):
 
     def _store_counts(self, *, closing: bool) -> None:
         """The evaluators' counts and problems of the current sequence (under the lock)."""
-        counts, messages = self._ledger.checkpoint(closing=closing)
-        problems = [*self._problems, *((None, None, text) for text in messages)]
-        self._problems = []
-        self._core.add_counts(counts, problems)
+        self._core.add_counts(*self._book.checkpoint(closing=closing))
 
     def _drain(self, executor: Any) -> None:
         """Spin while scores keep coming or an evaluator still publishes, at most the timeout."""

@@ -157,3 +157,29 @@ class DeliveryLedger:
                     previous.failed + now.failed - before.failed,
                 )
         return totals, messages
+
+
+ProblemRow = tuple[int | None, str | None, str]
+"""A problem as a summarizer stores it: stamp (None: not of one frame), method, message."""
+
+
+class CountsBook:
+    """What a summarizer stores with each sequence beside its frames (ROS and DDS alike).
+
+    The evaluators' counts come from their delivery records (:attr:`ledger`); the problems
+    (:attr:`problems`) are those that arrived since the previous checkpoint.
+    """
+
+    def __init__(self) -> None:
+        self.ledger = DeliveryLedger()
+        self.problems: list[ProblemRow] = []
+
+    def checkpoint(self, *, closing: bool) -> tuple[dict[str, MatchCounts], list[ProblemRow]]:
+        """Counts and problems since the previous checkpoint (:meth:`DeliveryLedger.checkpoint`).
+
+        The ledger's own messages (frames lost on the way, no final counts) come last.
+        """
+        counts, messages = self.ledger.checkpoint(closing=closing)
+        problems = [*self.problems, *((None, None, text) for text in messages)]
+        self.problems = []
+        return counts, problems
