@@ -187,11 +187,26 @@ def publishers(ros: Ros, topics: Topics) -> dict[str, Any]:
         topics.good: stereo_msgs.DisparityImage,
         topics.bad: stereo_msgs.DisparityImage,
     }
+    return make_publishers(ros, types)
+
+
+def make_publishers(ros: Ros, types: dict[str, Any]) -> dict[str, Any]:
     return {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
 
 
 def matched(pubs: dict[str, Any], topics: list[str]) -> Callable[[], bool]:
     return lambda: all(pubs[topic].get_subscription_count() > 0 for topic in topics)
+
+
+def scores_once_matched(ros: Ros, node: Any, pubs: dict[str, Any], topics: list[str]) -> list[Any]:
+    """The node's ``/dispeval/scores`` as they arrive, collected once ``topics``' publishers
+    and the collector are matched with the node."""
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, topics))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    return scores
 
 
 def statuses(array: Any) -> dict[str, Any]:
@@ -416,11 +431,7 @@ def test_frame_problems_are_error_statuses(ros: Ros) -> None:
     topics = Topics("problems")
     node = ros.evaluator(methods=[f"good:{topics.good}", f"bad:{topics.bad}"], gt_topic=topics.gt)
     pubs = publishers(ros, topics)
-    scores = ros.collect(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
-    )
-    assert ros.spin_until(matched(pubs, [topics.gt, topics.good, topics.bad]))
-    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    scores = scores_once_matched(ros, node, pubs, [topics.gt, topics.good, topics.bad])
     for topic, msg in frame_messages(topics, 0, bad_shape=True):
         pubs[topic].publish(msg)
     assert ros.spin_until(lambda: len(scores) == 1)
@@ -445,11 +456,7 @@ def test_shutdown_scores_and_publishes_the_frames_still_waiting(ros: Ros) -> Non
         methods=[f"good:{topics.good}", f"bad:{topics.bad}"], gt_topic=topics.gt, lateness=600.0
     )
     pubs = publishers(ros, topics)
-    scores = ros.collect(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
-    )
-    assert ros.spin_until(matched(pubs, [topics.gt, topics.good]))
-    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    scores = scores_once_matched(ros, node, pubs, [topics.gt, topics.good])
     gt, good, _ = frame_messages(topics, 0)
     for topic, msg in (gt, good):  # "bad" never delivers: the frame waits for it
         pubs[topic].publish(msg)
@@ -643,9 +650,7 @@ def test_end_to_end_over_ros_equals_dispeval_bag(ros: Ros, tmp_path: Path) -> No
     summarizer = ros.summarizer(output_dir=str(out), summary_every=5, drain_timeout=2.0)
     evaluator = evaluator_of(ros, config)
     sensor = rclpy.qos.qos_profile_sensor_data
-    pubs = {
-        t: ros.helper.create_publisher(k, t, sensor) for t, k in input_types(config).items()
-    }
+    pubs = {t: ros.helper.create_publisher(k, t, sensor) for t, k in input_types(config).items()}
     scores = ros.collect(
         diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.SCORES_QOS
     )
@@ -906,12 +911,8 @@ def test_point_cloud_ground_truth_equals_the_core(ros: Ros) -> None:
         topics.right: sensor_msgs.CameraInfo,
         topics.good: stereo_msgs.DisparityImage,
     }
-    pubs = {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
-    scores = ros.collect(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
-    )
-    assert ros.spin_until(matched(pubs, list(pubs)))
-    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    pubs = make_publishers(ros, types)
+    scores = scores_once_matched(ros, node, pubs, list(pubs))
     core = EvaluationCore(node.config)
     for topic, right in ((topics.left, False), (topics.right, True)):
         msg = camera_info_msg(START_NS, right)
@@ -1097,12 +1098,8 @@ def test_gt_free_measures_equal_the_core(ros: Ros, with_gt: bool) -> None:
         right_view: stereo_msgs.DisparityImage,
         **({topics.gt: sensor_msgs.Image} if with_gt else {}),
     }
-    pubs = {topic: ros.helper.create_publisher(kind, topic, 10) for topic, kind in types.items()}
-    scores = ros.collect(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
-    )
-    assert ros.spin_until(matched(pubs, list(pubs)))
-    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    pubs = make_publishers(ros, types)
+    scores = scores_once_matched(ros, node, pubs, list(pubs))
     core = EvaluationCore(node.config)
     expected: list[FrameResult] = []
     for k in range(3):
