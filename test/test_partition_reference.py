@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from dispeval_ros import Camera, Evaluator
-from dispeval_ros.core import criteria
+from dispeval_ros.core import criteria, kernels
 from dispeval_ros.core.criteria import is_sparse
 from dispeval_ros.errors import DispevalError
 from dispeval_ros.io import load_scene
@@ -182,7 +182,8 @@ def disparity_maps(draw: st.DrawFn) -> np.ndarray:
     else:
         gt = np.repeat(rng.uniform(1, 30, (height, 1)), width, axis=1)
         gt = gt + rng.integers(0, 3, (height, width))
-    invalid = draw(hnp.arrays(np.uint8, (height, width), elements=st.integers(0, 9)))
+    top = draw(st.sampled_from([9, 3]))  # about 30 % or 75 % of the points invalid
+    invalid = draw(hnp.arrays(np.uint8, (height, width), elements=st.integers(0, top)))
     gt[invalid == 0] = 0.0
     gt[invalid == 1] = np.nan
     gt[invalid == 2] = np.inf
@@ -203,6 +204,21 @@ def test_partition_matches_reference_on_dense_frames() -> None:
     assert_same_partition(ramp + rng.normal(0, 0.3, ramp.shape).astype(np.float32))
     quantised = np.round(ramp * 4) / 4  # many points exactly on the same values
     assert_same_partition(quantised.astype(np.float32))
+
+
+def test_partition_matches_reference_in_every_regime_of_the_kernels() -> None:
+    """Long and short runs of one cell; 3-means on every value or on the packed valid ones."""
+    rng = np.random.default_rng(11)
+    ramp = np.linspace(5.0, 80.0, 640, dtype=np.float32)[None, :] * np.ones((120, 1), np.float32)
+    sparse = ramp.copy()
+    sparse[rng.random(ramp.shape) < 0.8] = np.nan  # 20 % valid, scattered: short runs
+    for gt, packed, long_runs in ((ramp, False, True), (sparse, True, False)):
+        valid = criteria.valid_ground_truth(gt)
+        assert (valid.mean() < criteria.SPARSE_KMEANS_SHARE) == packed
+        cells = Evaluator(("all", "visibility", "depth")).reference(gt).partition.cells.ravel()
+        changes = int(np.count_nonzero(cells[1:] != cells[:-1]))
+        assert (changes * kernels.RUN_PIXELS < cells.size) == long_runs
+        assert_same_partition(gt)
 
 
 def _scene_folders(root: Path) -> list[Path]:

@@ -65,7 +65,11 @@ def _partitioning(
 
 def valid_ground_truth(gt: np.ndarray, all_mask: np.ndarray | None = None) -> np.ndarray:
     """Valid GT points: finite and > 0, restricted to an official ``all`` mask if given."""
-    valid = np.isfinite(gt) & (gt > 0)
+    if gt.dtype == np.float32 and gt.flags.c_contiguous:  # as the evaluator holds GT: one pass
+        valid = np.empty(gt.shape, dtype=np.bool_)
+        kernels.valid_points(gt.reshape(-1), valid.reshape(-1))
+    else:
+        valid = np.isfinite(gt) & (gt > 0)
     if all_mask is not None:
         _check_shape("the 'all' mask", all_mask, gt)
         valid &= all_mask.astype(bool, copy=False)
@@ -294,27 +298,42 @@ def kmeans_thresholds(
     moments) and then iterates on the exact values until the centroids no longer change.
     Each step sums whole bins from their moments and splits value by value only the bins a
     threshold falls in. A value equal to a threshold goes to the lower (farther) cluster.
+    ``valid`` marks finite values > 0 only (:func:`valid_ground_truth`, maybe narrowed).
     """
     if not valid.any():
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     values = _flat(gt)
-    packed = np.empty(values.shape, dtype=values.dtype)
-    packed = packed[: kernels.pack_valid(values, _flat(valid, np.bool_), packed)]
+    if values.dtype not in (np.float32, np.float64):
+        values = values.astype(np.float64)
+    flat_valid = _flat(valid, np.bool_)
+    count = int(np.count_nonzero(flat_valid))
+    if count < SPARSE_KMEANS_SHARE * flat_valid.shape[0]:  # mostly invalid: read only the valid
+        packed = np.empty(count + 1, dtype=values.dtype)  # + 1: the kernel writes one past
+        kernels.pack_valid(values, flat_valid, packed)
+        values, flat_valid = packed[:count], np.ones(count, dtype=np.bool_)
+    bits = values.view(np.int32 if values.dtype == np.float32 else np.int64)
+    limits = np.array([np.iinfo(bits.dtype).max, -1], dtype=bits.dtype)
+    kernels.valid_range(bits, flat_valid, limits)
+    lo, hi = (float(value) for value in limits.view(values.dtype))
     thresholds = np.empty(2)
     kernels.kmeans_three(
-        packed,
-        float(packed.min()),  # numpy's vectorised min and max
-        float(packed.max()),
+        values,
+        flat_valid,
+        lo,
+        hi,
         max_iterations,
         np.zeros(_KMEANS_BINS + 1, dtype=np.int64),
         np.zeros((8, _KMEANS_BINS + 1)),
-        np.empty(packed.shape[0]),
+        np.empty(values.shape[0]),  # untouched pages cost nothing: only a few bins are copied
+        np.empty(values.shape[0], dtype=np.uint16),
         thresholds,
     )
     return float(thresholds[0]), float(thresholds[1])
 
 
 _KMEANS_BINS = 512
+#: Below this share of valid points, 3-means packs the valid values first (sparse GT).
+SPARSE_KMEANS_SHARE = 0.5
 
 
 def depth_set(

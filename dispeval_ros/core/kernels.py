@@ -406,6 +406,28 @@ def visibility_labels(
         flat_labels[i] = 0 if flat_occluded[i] else (1 if flat_jump[i] else 2)
 
 
+#: Pixels per run of one cell, on average, from which :func:`partition_cells` works run by run.
+RUN_PIXELS = 8
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _run_end(flat_cells: np.ndarray, start: np.uint64, end: np.uint64) -> np.uint64:
+    """Where the run of equal cells that begins at ``start`` ends (16 at a time, vectorised)."""
+    cell = flat_cells[start]
+    stop = start + np.uint64(1)
+    chunk = np.uint64(16)
+    while stop + chunk <= end:
+        differ = np.int32(0)
+        for offset in range(16):
+            differ |= flat_cells[stop + np.uint64(offset)] ^ cell
+        if differ != 0:
+            break
+        stop += chunk
+    while stop < end and flat_cells[stop] == cell:
+        stop += np.uint64(1)
+    return stop
+
+
 @njit(cache=True, nogil=True)
 def partition_cells(
     flat_valid: np.ndarray,
@@ -419,7 +441,7 @@ def partition_cells(
     flat_labels: np.ndarray,
     labels_stride: int,
     flat_cells: np.ndarray,
-    lanes: np.ndarray,
+    next_slot: np.ndarray,
     offsets: np.ndarray,
     order: np.ndarray,
     sorted_values: np.ndarray,
@@ -433,10 +455,13 @@ def partition_cells(
     An input whose stride is 0 is not used (any array of the right type will do; for the labels
     even ``flat_cells``).
     Then a stable counting sort: ``order[offsets[c]:offsets[c + 1]]`` are cell ``c``'s
-    pixels, and ``sorted_values`` (unless empty) ``flat_values`` in that order. The caller
-    allocates (kernels that allocate and return arrays take twice as long to compile):
-    ``lanes`` zeros ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` and
-    ``sorted_values`` one entry per valid pixel.
+    pixels, and ``sorted_values`` (unless empty) ``flat_values`` in that order. Dense GT gives
+    long runs of one cell along image rows: whole runs (at least :data:`RUN_PIXELS` pixels on
+    average) are counted and placed with vectorised copies; otherwise (sparse GT) pixels are
+    counted one at a time on four interleaved counters. The caller allocates (kernels that
+    allocate and return arrays take twice as long to compile): ``next_slot`` zeros
+    ``(4, cells + 1)``, ``offsets`` ``(cells + 1)``, ``order`` and ``sorted_values`` one entry
+    per valid pixel.
     """
     n_cells = offsets.shape[0] - 1
     pixels = flat_cells.shape[0]
@@ -450,30 +475,67 @@ def partition_cells(
         for i in range(pixels):  # a negative label leaves the pixel out
             c = flat_cells[i] + flat_labels[i] * labels_stride
             flat_cells[i] = max(c, -1) if flat_valid[i] else -1
-    # Indices are unsigned below (cells are >= -1): no negative-index wrap-around is computed.
-    for i in range(pixels):  # interleaved counters: no chained increments
-        lanes[np.uint64(i & 3), np.uint64(flat_cells[i] + 1)] += 1
+    # Indices are unsigned below (cells are >= -1): no negative-index wrap-around is computed,
+    # which lets the loops vectorise.
+    end = np.uint64(pixels)
+    changes = 0
+    for i in range(1, pixels):  # vectorised
+        changes += flat_cells[np.uint64(i)] != flat_cells[np.uint64(i - 1)]
+    if changes * RUN_PIXELS < pixels:  # long runs (dense GT): count and place whole runs
+        start = np.uint64(0)
+        while start < end:
+            stop = _run_end(flat_cells, start, end)
+            next_slot[0, np.uint64(flat_cells[start] + 1)] += np.int64(stop - start)
+            start = stop
+    else:  # short runs (sparse GT): one pixel at a time, interleaved counters
+        for i in range(pixels):
+            next_slot[np.uint64(i & 3), np.uint64(flat_cells[i] + 1)] += 1
     offsets[0] = 0
     for c in range(n_cells):
-        offsets[c + 1] = offsets[c] + lanes[0, c + 1] + lanes[1, c + 1] + lanes[2, c + 1]
-        offsets[c + 1] += lanes[3, c + 1]
-    for c in range(n_cells + 1):
-        lanes[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
+        offsets[c + 1] = offsets[c] + next_slot[0, c + 1] + next_slot[1, c + 1]
+        offsets[c + 1] += next_slot[2, c + 1] + next_slot[3, c + 1]
+    for c in range(n_cells):
+        next_slot[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
+    slots = next_slot[0]
     gather = sorted_values.shape[0] > 0
+    if changes * RUN_PIXELS < pixels:
+        start = np.uint64(0)
+        while start < end:
+            cell = flat_cells[start]
+            stop = _run_end(flat_cells, start, end)
+            if cell >= 0:
+                slot = np.uint64(slots[cell])
+                length = stop - start
+                for k in range(length):
+                    order[slot + np.uint64(k)] = np.int32(start + np.uint64(k))
+                if gather:
+                    for k in range(length):
+                        sorted_values[slot + np.uint64(k)] = flat_values[start + np.uint64(k)]
+                slots[cell] = np.int64(slot + length)
+            start = stop
+        return
     current = np.uint64(0)
-    position = np.uint64(lanes[0, 0])
+    position = np.uint64(slots[0])
     for i in range(pixels):  # a run of one cell is placed from a register
         cell = flat_cells[i]
         if cell >= 0:
             c = np.uint64(cell)
             if c != current:
-                lanes[0, current] = position
+                slots[current] = position
                 current = c
-                position = np.uint64(lanes[0, c])
+                position = np.uint64(slots[c])
             order[position] = i
             if gather:
                 sorted_values[position] = flat_values[i]
             position += np.uint64(1)
+
+
+@njit(cache=True, nogil=True)
+def valid_points(flat_values: np.ndarray, flat_valid: np.ndarray) -> None:  # pragma: no cover
+    """``flat_valid``: each value is finite and > 0 (NaN fails both tests); vectorised."""
+    for k in range(flat_values.shape[0]):
+        i = np.uint64(k)  # unsigned: no wrap-around test in the loop
+        flat_valid[i] = (flat_values[i] > 0) & (flat_values[i] < np.inf)
 
 
 @njit(cache=True, nogil=True)
@@ -488,21 +550,50 @@ def pack_valid(
     return count
 
 
+@njit(cache=True, nogil=True)
+def valid_range(
+    bits: np.ndarray, valid: np.ndarray, limits: np.ndarray
+) -> None:  # pragma: no cover
+    """The bit patterns of the smallest and largest valid value, in ``limits`` (vectorised).
+
+    ``bits``: the values viewed as signed integers of their size. Valid values are finite and
+    > 0, whose bit patterns sort as the values do, and integer minima vectorise where float
+    ones (NaN rules) do not. The caller fills ``limits`` with the type's largest value and −1.
+    """
+    top = limits[0]
+    bottom = limits[1]
+    lowest = top
+    highest = bottom
+    for k in range(bits.shape[0]):
+        i = np.uint64(k)
+        lowest = min(lowest, bits[i] if valid[i] else top)
+        highest = max(highest, bits[i] if valid[i] else bottom)
+    limits[0] = lowest
+    limits[1] = highest
+
+
+#: Values per block of :func:`kmeans_three`'s bin ranges (a block is read whole or skipped).
+KMEANS_BLOCK = 64
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def kmeans_three(
     values: np.ndarray,
+    valid: np.ndarray,
     lo: float,
     hi: float,
     max_iterations: int,
     counts: np.ndarray,
     moments: np.ndarray,
     window: np.ndarray,
+    bin_of: np.ndarray,
     thresholds: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Deterministic 1-D 3-means of ``values`` (all valid, in ``[lo, hi]``): two ``thresholds``.
+    """Deterministic 1-D 3-means of the ``valid`` ``values`` (in ``[lo, hi]``): two ``thresholds``.
 
-    1. A histogram of ``bins`` equal bins with exact moments, in one pass: a run of values in
-       one bin is summed in registers.
+    1. A histogram of ``bins`` equal bins with exact moments: each value's bin first
+       (``bin_of``, a vectorised pass; the spare bin ``bins`` for a value not valid), then one
+       pass in which a run of values in one bin is summed in registers.
     2. The global optimum over the histogram: every pair of cuts at bin edges, by prefix sums
        (1-D optimal clusters are intervals), gives the starting centroids.
     3. Lloyd steps until the centroids no longer change. Binning is monotonic, so a bin below
@@ -513,8 +604,8 @@ def kmeans_three(
        cluster.
 
     One compiled function without allocations; the caller allocates ``counts`` int64 zeros
-    ``(bins + 1)``, ``moments`` float64 ``(8, bins + 1)`` with zeros in its first two rows, and
-    ``window`` one float64 per value.
+    ``(bins + 1)``, ``moments`` float64 ``(8, bins + 1)`` with zeros in its first two rows,
+    ``window`` one float64 per valid value and ``bin_of`` one uint16 per value (bins < 2¹⁶).
     """
     bins = counts.shape[0] - 1
     n = values.shape[0]
@@ -525,9 +616,16 @@ def kmeans_three(
     run_n = 0
     run_s = 0.0
     run_q = 0.0
-    for k in range(n):  # runs of one bin accumulate in registers
-        v = np.float64(values[k])
-        b = min(int((v - lo) * scale), bins - 1)
+    for k in range(n):  # unsigned indices: no wrap-around test, so the loop vectorises
+        i = np.uint64(k)
+        ok = valid[i]
+        value = np.float64(values[i])
+        b = min(int(((value if ok else lo) - lo) * scale), bins - 1)  # never of NaN or inf
+        bin_of[i] = np.uint16(b) if ok else np.uint16(bins)
+    for k in range(n):  # runs of one bin accumulate in registers (the spare bin's: unused)
+        i = np.uint64(k)
+        v = np.float64(values[i])
+        b = int(bin_of[i])
         if b != current:
             counts[current] += run_n
             sums[current] += run_s
@@ -562,22 +660,26 @@ def kmeans_three(
         best_j = 2
         # Every error is >= 0 up to rounding (far below ``slack``): a first cluster that alone
         # costs more than the best pair found cannot lead to a better one.
+        # Occupied bins make every cluster non-empty. The last cluster's error depends on the
+        # second cut alone (computed once); the totals of one first cut are computed in a
+        # vectorised loop, then scanned for the first smallest (row-major order, as before).
         slack = 1e-9 * abs(cq[occupied])
+        last_error = moments[4]
+        totals = moments[3]
+        for j in range(2, occupied):
+            s2 = cs[occupied] - cs[j]
+            last_error[j] = (cq[occupied] - cq[j]) - s2 * s2 / (cw[occupied] - cw[j])
         for i in range(1, occupied - 1):
             n0 = cw[i]
-            sse0 = cq[i] - cs[i] * cs[i] / n0 if n0 > 0 else 0.0
+            sse0 = cq[i] - cs[i] * cs[i] / n0
             if sse0 > best + slack:
                 continue
             for j in range(i + 1, occupied):
-                n1 = cw[j] - n0
-                n2 = cw[occupied] - cw[j]
                 s1 = cs[j] - cs[i]
-                s2 = cs[occupied] - cs[j]
-                sse1 = (cq[j] - cq[i]) - s1 * s1 / n1 if n1 > 0 else 0.0
-                sse2 = (cq[occupied] - cq[j]) - s2 * s2 / n2 if n2 > 0 else 0.0
-                total = sse0 + sse1 + sse2
-                if total < best:
-                    best = total
+                totals[j] = sse0 + ((cq[j] - cq[i]) - s1 * s1 / (cw[j] - n0)) + last_error[j]
+            for j in range(i + 1, occupied):
+                if totals[j] < best:
+                    best = totals[j]
                     best_i = i
                     best_j = j
         c0 = cs[best_i] / cw[best_i]
@@ -602,10 +704,9 @@ def kmeans_three(
             last_high = min(cut_high + 2, bins - 1)
             _copy_bins(
                 values,
-                lo,
-                scale,
                 counts,
                 (first_low, last_low, first_high, last_high),
+                bin_of,
                 starts,
                 fill,
                 window,
@@ -647,19 +748,18 @@ def kmeans_three(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _copy_bins(
     values: np.ndarray,
-    lo: float,
-    scale: float,
     counts: np.ndarray,
     ranges: tuple[int, int, int, int],
+    bin_of: np.ndarray,
     starts: np.ndarray,
     fill: np.ndarray,
     window: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Copy the values of the bins in ``ranges`` (two inclusive bin ranges) to ``window``.
 
-    Grouped by bin (``starts[b]``), in the order of ``values``. Blocks of values without one
-    in those bins are skipped after a vectorised test; bins are decided exactly as in the
-    histogram.
+    Grouped by bin (``starts[b]``), in the order of ``values``. Blocks of
+    :data:`KMEANS_BLOCK` values without one in those bins (``bin_of``: each value's bin) are
+    skipped after a vectorised test.
     """
     bins = counts.shape[0] - 1
     first_low, last_low, first_high, last_high = ranges
@@ -669,24 +769,27 @@ def _copy_bins(
         fill[b] = position
         inside = (first_low <= b <= last_low) | (first_high <= b <= last_high)
         position += counts[b] if inside else 0
-    a0 = first_low - 1.0  # a margin of one bin: the exact test follows
-    a1 = last_low + 2.0
-    b0 = first_high - 1.0
-    b1 = last_high + 2.0
+    low_from = np.uint16(first_low)  # b in [first, last] ⇔ (uint16) (b − first) <= last − first
+    low_span = np.uint16(last_low - first_low)
+    high_from = np.uint16(first_high)
+    high_span = np.uint16(last_high - first_high)
     n = values.shape[0]
-    for start in range(0, n, 64):
-        stop = min(start + 64, n)
-        hit = False
-        for k in range(start, stop):
-            e = (np.float64(values[k]) - lo) * scale
-            hit |= ((e >= a0) & (e < a1)) | ((e >= b0) & (e < b1))
-        if not hit:
+    for start in range(0, n, KMEANS_BLOCK):
+        hit = np.uint16(0)
+        if start + KMEANS_BLOCK <= n:  # a fixed count and unsigned indices: vectorised
+            base = np.uint64(start)
+            for j in range(KMEANS_BLOCK):
+                b = bin_of[base + np.uint64(j)]
+                hit |= np.uint16(np.uint16(b - low_from) <= low_span)
+                hit |= np.uint16(np.uint16(b - high_from) <= high_span)
+        else:
+            hit = np.uint16(1)
+        if hit == 0:
             continue
-        for k in range(start, stop):
-            v = np.float64(values[k])
-            b = min(int((v - lo) * scale), bins - 1)
+        for k in range(start, min(start + KMEANS_BLOCK, n)):
+            b = int(bin_of[k])
             if (first_low <= b <= last_low) | (first_high <= b <= last_high):
-                window[int(fill[b])] = v
+                window[int(fill[b])] = values[k]
                 fill[b] += 1
 
 
