@@ -159,12 +159,16 @@ def _disparity_sums(
     gt: np.ndarray,
     fb: float,
     depth_offset: float,
-    delta: float,
+    thresholds: np.ndarray,
+    extra: bool,
     missing_weight: float,
-) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
-    """One cell's disparity-domain sums: valid, evaluated, e, e², rel, SZE, BMPRE, D1, bad.
+) -> tuple[float, ...]:  # pragma: no cover
+    """One cell's disparity-domain sums: valid, evaluated, e, e², rel, SZE, BMPRE, D1, bad counts.
 
-    Contiguous slices and no branches, so it vectorises.
+    The bad counts are those of the :data:`MAX_THRESHOLDS` ``thresholds`` (δ first; ``inf``:
+    counts 0), the others only ``if extra`` (a loop-invariant test: the compiler makes two
+    loops). Contiguous slices and no branches, so it vectorises. The bad counts cost little
+    here (a comparison each) and much as passes of their own (each reads both arrays again).
     """
     n_valid = 0.0
     n_eval = 0.0
@@ -174,7 +178,10 @@ def _disparity_sums(
     sze = 0.0
     bmpre = 0.0
     d1 = 0.0
-    bad = 0.0
+    bad0 = bad1 = bad2 = bad3 = bad4 = bad5 = bad6 = bad7 = 0.0
+    delta = thresholds[0]
+    t1, t2, t3, t4 = thresholds[1], thresholds[2], thresholds[3], thresholds[4]
+    t5, t6, t7 = thresholds[5], thresholds[6], thresholds[7]
     for k in range(values.shape[0]):
         raw = np.float64(values[k])
         weight = 1.0 if raw > 0.0 else missing_weight
@@ -190,8 +197,19 @@ def _disparity_sums(
         sze += weight * fb * e / abs((d + depth_offset) * (value + depth_offset))
         bmpre += weight * rel if e > delta else 0.0
         d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
-        bad += weight if e > delta else 0.0
-    return n_valid, n_eval, sum_e, sum_e2, sum_rel, sze, bmpre, d1, bad
+        bad0 += weight if e > delta else 0.0
+        if extra:
+            bad1 += weight if e > t1 else 0.0
+            bad2 += weight if e > t2 else 0.0
+            bad3 += weight if e > t3 else 0.0
+            bad4 += weight if e > t4 else 0.0
+            bad5 += weight if e > t5 else 0.0
+            bad6 += weight if e > t6 else 0.0
+            bad7 += weight if e > t7 else 0.0
+    return (
+        n_valid, n_eval, sum_e, sum_e2, sum_rel, sze, bmpre, d1,
+        bad0, bad1, bad2, bad3, bad4, bad5, bad6, bad7,
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -225,19 +243,6 @@ def _depth_sums(
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def _bad_count(
-    values: np.ndarray, gt: np.ndarray, threshold: float, missing_weight: float
-) -> float:  # pragma: no cover - compiled
-    """Weighted number of points of one cell with error above ``threshold``."""
-    bad = 0.0
-    for k in range(values.shape[0]):
-        raw = np.float64(values[k])
-        weight = 1.0 if raw > 0.0 else missing_weight
-        bad += weight if abs(abs(raw) - np.float64(gt[k])) > threshold else 0.0
-    return bad
-
-
-@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def accumulate_cells(
     values: np.ndarray,
     offsets: np.ndarray,
@@ -257,18 +262,19 @@ def accumulate_cells(
     ``doffs + μ``; the SZE term ``|f·B/(D+o) − f·B/(E+o)|`` is computed as the equal
     ``f·B·e / |(D+o)(E+o)|``, which has no cancellation; the depth-domain terms use ``μ`` only
     as a floor of ``d + doffs`` (see :func:`_depth_sums`). ``thresholds[0]`` is δ (bmp,
-    bmpre), the others the bad-x thresholds (``inf`` entries are unused).
+    bmpre), the others the bad-x thresholds, then ``inf`` (unused).
     ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
     measures) and 1 otherwise. The depth-domain columns are summed only when
     ``depth_terms`` (otherwise they stay 0; measures are derived from requested fields only).
     """
+    extra = thresholds[1] < np.inf  # bad_X thresholds are listed first, then inf
     for cell in range(offsets.shape[0] - 1):
         start = offsets[cell]
         stop = offsets[cell + 1]
         cell_values = values[start:stop]
         cell_gt = gt_sorted[start:stop]
         terms = _disparity_sums(
-            cell_values, cell_gt, fb, depth_offset, thresholds[0], missing_weight
+            cell_values, cell_gt, fb, depth_offset, thresholds, extra, missing_weight
         )
         row = sums[cell]
         row[FIELD_N] += stop - start
@@ -280,18 +286,14 @@ def accumulate_cells(
         row[FIELD_SZE] += terms[5]
         row[FIELD_BMPRE] += terms[6]
         row[FIELD_D1] += terms[7]
-        row[FIELD_BAD] += terms[8]
+        for t in range(MAX_THRESHOLDS):
+            row[FIELD_BAD + t] += terms[8 + t]
         if depth_terms:  # as costly as all the others (two more divisions per point)
             depth = _depth_sums(cell_values, cell_gt, fb, depth_offset, mu, missing_weight)
             row[FIELD_SUM_EZ] += depth[0]
             row[FIELD_SUM_EZ2] += depth[1]
             row[FIELD_SUM_RELZ] += depth[2]
             row[FIELD_SUM_IZ2] += depth[3]
-        for t in range(1, thresholds.shape[0]):
-            if thresholds[t] < np.inf:
-                row[FIELD_BAD + t] += _bad_count(
-                    cell_values, cell_gt, thresholds[t], missing_weight
-                )
 
 
 #: Spare z-buffer slots that pixels landing nowhere write to in turn (never read): one slot for
