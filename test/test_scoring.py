@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from dispeval_ros.core.camera import Camera
-from dispeval_ros.core.evaluator import Evaluator
+from dispeval_ros.core.evaluator import Evaluator, kth_smallest
 from dispeval_ros.core.measures import DEFAULT_MEASURES, Scores
 from dispeval_ros.errors import (
     ConfigurationError,
@@ -473,6 +473,34 @@ def test_quantiles_at_floor_index_without_interpolation() -> None:
     assert got["all"]["a90"] == 9.0
     assert got["all"]["a75"] == 7.0
     assert got["all"]["a10"] == 1.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.lists(st.integers(0, 40).map(lambda v: v / 4), max_size=300).map(sorted),
+        min_size=1,
+        max_size=9,
+    ),
+    st.data(),
+)
+def test_kth_smallest_of_sorted_parts_is_the_sorted_union(
+    parts: list[list[float]], data: st.DataObject
+) -> None:
+    union = np.sort(np.concatenate([np.asarray(p, dtype=np.float64) for p in parts]))
+    if not union.size:
+        return
+    ks = data.draw(st.lists(st.integers(0, union.size - 1), min_size=1, max_size=5))
+    found = kth_smallest([np.asarray(p, dtype=np.float64) for p in parts], ks)
+    assert found == {k: float(union[k]) for k in ks}
+
+
+def test_kth_smallest_on_many_values_with_few_probes() -> None:
+    rng = np.random.default_rng(4)
+    parts = [np.sort(rng.gamma(2.0, 3.0, n).round(2)) for n in (90_000, 0, 7, 300_000, 1)]
+    union = np.sort(np.concatenate(parts))
+    ks = [0, 1, union.size // 2, union.size * 9 // 10, union.size - 1]
+    assert kth_smallest(parts, ks) == {k: float(union[k]) for k in ks}
 
 
 def test_quantiles_under_ignore_use_evaluated_points_only() -> None:

@@ -449,23 +449,71 @@ class Evaluator:
     def _quantile_values(
         self, reference: Reference, values: np.ndarray
     ) -> dict[str, dict[str, float]]:
-        """ETH3D-style error quantiles: the value at index ⌊N·q/100⌋ of the sorted errors."""
+        """ETH3D-style error quantiles: the value at index ⌊N·q/100⌋ of the sorted errors.
+
+        Each cell's errors are sorted once; a criterion's order statistics are then read off
+        the union of its cells' sorted errors (:func:`kth_smallest`), without sorting it.
+        """
         partition = reference.partition
         raw = values.astype(np.float64)
         errors = np.abs(np.abs(raw) - reference.gt_sorted)
-        keep = raw > 0 if self.missing == "ignore" else np.ones(raw.shape, bool)
-        cell_of = np.repeat(np.arange(partition.offsets.shape[0] - 1), np.diff(partition.offsets))
+        offsets = partition.offsets
+        cells = []
+        for cell in range(offsets.shape[0] - 1):
+            part = errors[offsets[cell] : offsets[cell + 1]]
+            if self.missing == "ignore":  # only evaluated points
+                part = part[raw[offsets[cell] : offsets[cell + 1]] > 0]
+            part.sort()  # in place: ``errors`` is this call's own
+            cells.append(part)
         levels = {name: quantile_level(name) or 0.0 for name in self._quantiles}
         result: dict[str, dict[str, float]] = {}
         for index, criterion in enumerate(partition.criteria):
-            selected = errors[partition.membership[index][cell_of] & keep]
-            if not selected.size:
+            parts = [cells[c] for c in np.flatnonzero(partition.membership[index])]
+            size = sum(part.size for part in parts)
+            if not size:
                 result[criterion] = dict.fromkeys(self._quantiles, math.nan)
                 continue
             positions = {
-                name: min(math.floor(selected.size * level / 100.0), selected.size - 1)
+                name: min(math.floor(size * level / 100.0), size - 1)
                 for name, level in levels.items()
             }
-            ordered = np.partition(selected, sorted(set(positions.values())))
-            result[criterion] = {name: float(ordered[p]) for name, p in positions.items()}
+            found = kth_smallest(parts, sorted(set(positions.values())))
+            result[criterion] = {name: found[p] for name, p in positions.items()}
         return result
+
+
+#: Candidate values per sorted part in :func:`kth_smallest`'s first step.
+KTH_PROBES = 256
+
+
+def kth_smallest(parts: Sequence[np.ndarray], ks: Sequence[int]) -> dict[int, float]:
+    """The ``k``-th smallest value (0-based) of the union of sorted arrays, for each ``k``.
+
+    Every ``step``-th value of each part (and its largest) is a probe; how many values are
+    ≤ each probe follows from binary searches. The ``k``-th value lies above the last probe
+    with fewer than ``k + 1`` values below or at it and at or below the next, so only the
+    few values between those two probes are sorted. Exact, ties included.
+    """
+    parts = [part for part in parts if part.size]
+    if len(parts) == 1:
+        return {k: float(parts[0][k]) for k in ks}
+    total = sum(part.size for part in parts)
+    step = max(1, total // (KTH_PROBES * len(parts)))
+    samples = [part[step - 1 :: step] for part in parts]
+    largest = np.array([part[-1] for part in parts])
+    probes = np.unique(np.concatenate([*samples, largest]))
+    ranks = np.zeros(probes.shape[0], dtype=np.int64)  # values ≤ each probe
+    for part in parts:
+        ranks += np.searchsorted(part, probes, side="right")
+    found: dict[int, float] = {}
+    for k in ks:
+        upper = int(np.searchsorted(ranks, k + 1))  # the first probe with ≥ k + 1 values ≤ it
+        if upper:
+            below = int(ranks[upper - 1])
+            starts = [int(np.searchsorted(p, probes[upper - 1], side="right")) for p in parts]
+        else:
+            below, starts = 0, [0] * len(parts)
+        stops = [int(np.searchsorted(p, probes[upper], side="right")) for p in parts]
+        window = np.concatenate([p[a:b] for p, a, b in zip(parts, starts, stops, strict=True)])
+        found[k] = float(np.sort(window)[k - below])
+    return found
