@@ -107,13 +107,14 @@ def _open_file(path: Path) -> tuple[str, Backend]:
 
 
 def _open_rosbag2(folder: Path, fmt: str) -> Backend:
+    mcaps = sorted(folder.glob("*.mcap")) if fmt == "rosbag2-mcap" else []
+    storage = mcaps[0] if len(mcaps) == 1 else None
     try:
-        return _guard(folder, lambda: RosbagsBackend([folder], folder, ros1=False))
+        return _guard(folder, lambda: RosbagsBackend([folder], folder, False, storage))
     except InputError:
         # rosbags refuses MCAP storage without a valid footer (a recorder that was killed):
         # fall back to scanning the storage file with mcap, which yields what is readable.
         # Only then: a bag whose metadata is broken stays an error.
-        mcaps = sorted(folder.glob("*.mcap"))
         if fmt != "rosbag2-mcap" or len(mcaps) != 1 or not _lacks_end_magic(mcaps[0]):
             raise
         try:
