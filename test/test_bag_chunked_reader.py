@@ -289,3 +289,47 @@ def test_a_chunk_index_outside_the_file_is_not_read_here(tmp_path: Path) -> None
     first = summary.chunk_indexes[0]
     summary.chunk_indexes[0] = dataclasses.replace(first, chunk_length=path.stat().st_size)
     assert chunked_mcap.open_chunked(path, summary) is None
+
+
+# -- provenance digests ----------------------------------------------------------------------
+
+
+def test_stream_digests_are_the_same_from_the_map(
+    synthetic: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from dispeval_ros.io.bags.source import BagSource as Source
+    from dispeval_ros.io.provenance import stream_digests
+
+    topics = list(TYPES)
+    with BagSource(synthetic) as source:
+        mapped = source.serialized_messages(topics) is not None
+        assert mapped == (source.format in ("mcap", "rosbag2-mcap"))
+    ours = stream_digests(synthetic, topics)
+    monkeypatch.setattr(Source, "serialized_messages", lambda *_: None)
+    assert stream_digests(synthetic, topics) == ours
+    assert all(entry["messages"] == 6 for entry in ours.values())
+
+
+def test_stream_digests_continue_with_the_library_after_a_chunk_it_cannot_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from dispeval_ros.io.bags.source import BagSource as Source
+    from dispeval_ros.io.provenance import stream_digests
+
+    path = write_synthetic(tmp_path / "bag", "rosbag2-mcap", False, 6, True)
+    topics = [*TYPES, "/filler"]
+    expected = stream_digests(path, topics)
+    last = chunked_mcap.mcap_summary(storage_file(path)).chunk_indexes[-1]
+    original = chunked_mcap.ChunkedMcap._checked_records
+
+    def refuse_the_last(self: Any, chunk: Any) -> memoryview:
+        if chunk.offset == last.chunk_start_offset:
+            raise NotChunked("not this one")
+        return original(self, chunk)
+
+    monkeypatch.setattr(chunked_mcap.ChunkedMcap, "_checked_records", refuse_the_last)
+    with BagSource(path) as source:
+        assert source.serialized_messages(topics) is not None
+    assert stream_digests(path, topics) == expected
+    monkeypatch.setattr(Source, "serialized_messages", lambda *_: None)
+    assert stream_digests(path, topics) == expected

@@ -20,6 +20,7 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
+from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap
 from dispeval_ros.io.bags.mcap_reader import McapBackend
 from dispeval_ros.io.bags.rosbags_reader import RosbagsBackend
 
@@ -190,6 +191,27 @@ class BagSource:
         if not wanted:
             return iter(())
         return self._backend.messages(wanted, start_ns, stop_ns, on_error)
+
+    def serialized_messages(
+        self, topics: Sequence[str]
+    ) -> Iterator[tuple[str, int, bytes | memoryview]] | None:
+        """``(topic, log time ns, serialized bytes)`` of ``topics`` in log-time order, unparsed.
+
+        Only where the bag is read chunk by chunk from a memory map (indexed MCAP storage): the
+        bytes are views of the map, no copy. None otherwise. Raises
+        :class:`~dispeval_ros.io.bags.chunked_mcap.NotChunked` at a chunk it cannot read (the
+        caller continues with a library reader; see
+        :func:`~dispeval_ros.io.bags.chunked_mcap.fast_then_slow`).
+        """
+        chunked: ChunkedMcap | None = getattr(self._backend, "_chunked", None)
+        if self._closed or chunked is None:
+            return None
+        wanted = set(topics)
+        channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
+        return (
+            (chunked.topics[cid], log_ns, raw)
+            for cid, log_ns, raw in chunked.messages(channels, None, None)
+        )
 
     def close(self) -> None:
         """Release the bag's files (idempotent)."""
