@@ -225,16 +225,29 @@ def _depth_sums(
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def _bad_count(
-    values: np.ndarray, gt: np.ndarray, threshold: float, missing_weight: float
-) -> float:  # pragma: no cover - compiled
-    """Weighted number of points of one cell with error above ``threshold``."""
-    bad = 0.0
+def _bad_counts3(
+    values: np.ndarray,
+    gt: np.ndarray,
+    t1: float,
+    t2: float,
+    t3: float,
+    missing_weight: float,
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Weighted numbers of points of one cell with error above each of three thresholds.
+
+    One pass for three thresholds (half the time of three passes; more accumulators than
+    three make the pass slower again). Counts of 0/1 weights are exact in any order, so they
+    equal separate passes' counts. An ``inf`` threshold counts nothing.
+    """
+    b1 = b2 = b3 = 0.0
     for k in range(values.shape[0]):
         raw = np.float64(values[k])
         weight = 1.0 if raw > 0.0 else missing_weight
-        bad += weight if abs(abs(raw) - np.float64(gt[k])) > threshold else 0.0
-    return bad
+        e = abs(abs(raw) - np.float64(gt[k]))
+        b1 += weight if e > t1 else 0.0
+        b2 += weight if e > t2 else 0.0
+        b3 += weight if e > t3 else 0.0
+    return b1, b2, b3
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -287,11 +300,15 @@ def accumulate_cells(
             row[FIELD_SUM_EZ2] += depth[1]
             row[FIELD_SUM_RELZ] += depth[2]
             row[FIELD_SUM_IZ2] += depth[3]
-        for t in range(1, thresholds.shape[0]):
-            if thresholds[t] < np.inf:
-                row[FIELD_BAD + t] += _bad_count(
-                    cell_values, cell_gt, thresholds[t], missing_weight
-                )
+        for t in range(1, thresholds.shape[0], 3):  # bad-x thresholds, three per pass
+            t2 = thresholds[t + 1] if t + 1 < thresholds.shape[0] else np.inf
+            t3 = thresholds[t + 2] if t + 2 < thresholds.shape[0] else np.inf
+            if min(thresholds[t], t2, t3) == np.inf:  # unused: inf
+                continue
+            bad = _bad_counts3(cell_values, cell_gt, thresholds[t], t2, t3, missing_weight)
+            for i in range(3):
+                if t + i < thresholds.shape[0] and thresholds[t + i] < np.inf:
+                    row[FIELD_BAD + t + i] += bad[i]
 
 
 #: Spare z-buffer slots that pixels landing nowhere write to in turn (never read): one slot for
