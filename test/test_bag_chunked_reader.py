@@ -282,12 +282,17 @@ def test_fast_then_slow_takes_over_after_the_items_yielded() -> None:
     assert list(fast_then_slow(iter(range(3)), lambda: iter(()))) == [0, 1, 2]
 
 
-def test_a_chunk_index_outside_the_file_is_not_read_here(tmp_path: Path) -> None:
+def test_what_the_chunked_reader_does_not_know_is_left_to_the_libraries(tmp_path: Path) -> None:
     path = write_synthetic(tmp_path / "bag.mcap", "mcap", False)
     summary = chunked_mcap.mcap_summary(path)
     assert chunked_mcap.open_chunked(path, summary) is not None
     first = summary.chunk_indexes[0]
     summary.chunk_indexes[0] = dataclasses.replace(first, chunk_length=path.stat().st_size)
+    assert chunked_mcap.open_chunked(path, summary) is None
+    # Chunks without message indexes: rosbags skips them, mcap reads them; neither is guessed.
+    summary.chunk_indexes[0] = dataclasses.replace(first, message_index_offsets={})
+    assert chunked_mcap.open_chunked(path, summary) is None
+    summary.chunk_indexes[0] = dataclasses.replace(first, compression="bz2")
     assert chunked_mcap.open_chunked(path, summary) is None
 
 

@@ -195,13 +195,14 @@ def mcap_summary(path: Path) -> Any:
 def open_chunked(path: Path, summary: Any) -> ChunkedMcap | None:
     """The chunked reader of an MCAP file given its summary (mcap's ``Summary``), or None.
 
-    None when the summary has no chunk index or names a compression this reader lacks.
+    None when the summary has no chunk index, or a chunk without message indexes (rosbags
+    skips those, mcap reads them) or in a compression this reader lacks.
     """
     if summary is None or not summary.chunk_indexes:
         return None
     chunks = []
     for index in summary.chunk_indexes:
-        if index.compression not in ("", "lz4", "zstd"):
+        if index.compression not in ("", "lz4", "zstd") or not index.message_index_offsets:
             return None
         chunks.append(
             _ChunkIndex(
