@@ -223,9 +223,10 @@ class McapBackend:
                 for schema, channel, message in stream
             )
 
-        payloads = library()
         chunked = self._chunked
-        if chunked is not None:
+        if chunked is None:
+            payloads = library()
+        else:
             wanted = set(topics)
             channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
             fast = (

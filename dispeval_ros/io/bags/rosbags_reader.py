@@ -78,10 +78,11 @@ class RosbagsBackend:
                 for connection, log_ns, raw in stream
             )
 
-        payloads = library()
         chunked = self._chunked
         msgtypes = {c.topic: c.msgtype for c in connections}
-        if chunked is not None and len(msgtypes) == len(connections):  # one type per topic
+        if chunked is None or len(msgtypes) != len(connections):  # one type per topic, or not
+            payloads = library()
+        else:
             channels = [cid for cid, topic in chunked.topics.items() if topic in msgtypes]
             fast = (
                 (chunked.topics[cid], log_ns, (raw, msgtypes[chunked.topics[cid]]))
