@@ -13,9 +13,10 @@ deserialiser), the project's reader (``BagSource``) doing the same, one pass tha
 and scores in one thread without units, store or provenance, the pipeline (`evaluate_bags`:
 units, store) and the whole `dispeval bag` command (run in this process, kernels loaded: the
 pipeline plus the provenance digests, the CSV export and the summary), each with --jobs 1 and
-2. Each is the best of --rounds, the rounds interleaved (the machine is shared: the load
-average is printed, and --idle-cores N waits, up to a minute, for N idle cores before each
-timed run of the pipeline). Asserts nothing (machines are noisy).
+2, and last the CPU time of each thread of a pipeline and a command run with --jobs 1 (how
+many cores they keep busy). Each is the best of --rounds, the rounds interleaved (the machine
+is shared: the load average is printed, and --idle-cores N waits, up to a minute, for N idle
+cores before each timed run of the pipeline). Asserts nothing (machines are noisy).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import io
 import math
 import os
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -133,6 +135,12 @@ def one_pass(bag: Path, config: CoreConfig) -> None:
                 core.score(frame_set)
     for frame_set in core.flush():
         core.score(frame_set)
+
+
+def pipeline_run(bag: Path, config: CoreConfig, out: Path, jobs: int = 1) -> None:
+    """``evaluate_bags`` of the bench's bag into a new results database at ``out``."""
+    with ResultsStore.create(out, {"jobs": jobs}) as store:
+        evaluate_bags([bag], config, store, jobs=jobs)
 
 
 def bag_command(bag: Path, out: Path, jobs: int) -> int:
@@ -260,6 +268,53 @@ def gts_in_bag(bag: Path) -> int:
         return source.topics[GT_TOPIC].count
 
 
+def cpu_per_thread(run: Callable[[], Any]) -> tuple[float, dict[str, float]]:
+    """Wall seconds of ``run()`` and CPU seconds per thread name (from /proc; Linux only).
+
+    A sampler reads every thread's CPU time every 20 ms, so threads that end during the run
+    are counted up to their last sample. Empty where /proc/self/task is missing.
+    """
+    if not Path("/proc/self/task").is_dir():
+        started = time.perf_counter()
+        run()
+        return time.perf_counter() - started, {}
+    tick = os.sysconf("SC_CLK_TCK")
+    seen: dict[int, tuple[str, float]] = {}
+
+    def sample() -> dict[int, tuple[str, float]]:
+        names = {t.native_id: t.name.rstrip("0123456789_-") for t in threading.enumerate()}
+        found = {}
+        for task in os.listdir("/proc/self/task"):
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                with open(f"/proc/self/task/{task}/stat", encoding="ascii") as stat:
+                    fields = stat.read().rsplit(")", 1)[1].split()
+                native = int(task)
+                found[native] = (names.get(native, "?"), (int(fields[11]) + int(fields[12])) / tick)
+        return found
+
+    before = sample()
+    done = threading.Event()
+
+    def sampler() -> None:
+        while not done.is_set():
+            seen.update(sample())
+            time.sleep(0.02)
+
+    thread = threading.Thread(target=sampler, name="bench-sampler", daemon=True)
+    thread.start()
+    started = time.perf_counter()
+    run()
+    wall = time.perf_counter() - started
+    done.set()
+    thread.join()
+    seen.update(sample())
+    cpu: dict[str, float] = {}
+    for native, (name, seconds) in seen.items():
+        if name != "bench-sampler":
+            cpu[name] = cpu.get(name, 0.0) + seconds - before.get(native, (name, 0.0))[1]
+    return wall, {name: seconds for name, seconds in cpu.items() if seconds > 0.005}
+
+
 def main() -> None:
     """Write the bag, time each stage, then reading alone and the whole pipeline."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -331,8 +386,7 @@ def main() -> None:
         for jobs, seconds in pipeline.items():
             wait_for_idle(args.idle_cores)
             started = time.perf_counter()
-            with ResultsStore.create(root / f"run{jobs}-{round_}", {"jobs": jobs}) as store:
-                evaluate_bags([bag], config, store, jobs=jobs)
+            pipeline_run(bag, config, root / f"run{jobs}-{round_}", jobs)
             pipeline[jobs] = min(seconds, time.perf_counter() - started)
             wait_for_idle(args.idle_cores)
             started = time.perf_counter()
@@ -360,6 +414,21 @@ def main() -> None:
                 f"{rate:7.1f} method-frames/s ({rate / floor:.2f}× the reader alone, "
                 f"{one / seconds:.2f}× the one pass)"
             )
+    for what, runner in (
+        (
+            "evaluate_bags",
+            lambda: pipeline_run(bag, config, root / "threads"),
+        ),
+        ("the dispeval bag command", lambda: bag_command(bag, root / "threads-command", 1)),
+    ):
+        wait_for_idle(args.idle_cores)
+        wall, cpu = cpu_per_thread(runner)
+        threads = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in sorted(cpu.items()))
+        total = sum(cpu.values())
+        print(
+            f"CPU per thread, {what} --jobs 1: {wall:.2f} s wall, {threads}: {total:.2f} s, "
+            f"{total / wall:.2f} cores busy"
+        )
     load = " ".join(f"{value:.2f}" for value in os.getloadavg())
     print(f"load average after: {load}")
 
