@@ -348,3 +348,27 @@ def test_stream_digests_continue_with_the_library_after_a_chunk_it_cannot_read(
     assert stream_digests(path, topics) == expected
     monkeypatch.setattr(Source, "serialized_messages", lambda *_: None)
     assert stream_digests(path, topics) == expected
+
+
+def test_messages_compressed_by_rosbag2_are_left_to_rosbags(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rosbag2's per-message compression: the storage holds zstd frames, not CDR."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    path = tmp_path / "bag"
+    writer = Writer(path, version=8, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with writer:
+        connections = {
+            topic: writer.add_connection(topic, msgtype, typestore=HUMBLE)
+            for topic, msgtype in TYPES.items()
+        }
+        for index in range(3):
+            for topic, msg in images(index):
+                raw = HUMBLE.serialize_cdr(msg, TYPES[topic])
+                writer.write(connections[topic], T0 + index * STEP, raw)
+    assert not uses_chunked(path)
+    ours = read_all(path)
+    assert len(ours) == 3 * len(TYPES)
+    assert_same_stream(ours, library_stream(path, monkeypatch))

@@ -57,7 +57,13 @@ class RosbagsBackend:
         empty = self.message_count == 0 or start >= MAX_TIME
         self.start_ns = 0 if empty else start
         self.end_ns = 0 if empty else end
-        self._chunked = None if storage is None else open_chunked(storage, mcap_summary(storage))
+        # Messages (or files) compressed by rosbag2 itself, not by MCAP chunks, are decompressed
+        # by rosbags' reader: not read here.
+        modes = {str(getattr(r, "compression_mode", None)).lower() for r in reader.readers}
+        plain = not modes & {"message", "file"}
+        self._chunked = (
+            open_chunked(storage, mcap_summary(storage)) if storage is not None and plain else None
+        )
 
     def messages(
         self,
