@@ -7,14 +7,16 @@ Writes a synthetic 1242×375 drive with three methods (bm_fast, sgbm, sgbm_3way)
 opening the bag, reading and deserialising, decoding the pixel buffers, joining, the partition
 of each ground-truth map, scoring, building the unit rows and storing them, and hashing the
 scored streams for the provenance record; their sum is what one thread needs per frame,
-against what 0.5× the reader alone allows. Then the reader alone (the baseline: open, iterate
-and deserialise every message), one pass that reads, joins and scores in one thread without
-units, store or provenance, the pipeline (`evaluate_bags`: units, store) and the whole
-`dispeval bag` command (run in this process, kernels loaded: the pipeline plus the provenance
-digests, the CSV export and the summary), each with --jobs 1 and 2. Each is the best of
---rounds, the rounds interleaved (the machine is shared: the load average is printed, and
---idle-cores N waits, up to a minute, for N idle cores before each timed run of the
-pipeline). Asserts nothing (machines are noisy).
+against what 0.5× the reader alone allows. Then the reader alone (the baseline, the floor:
+rosbags' ``AnyReader`` opening the bag, iterating and deserialising every message with its own
+deserialiser), the project's reader (``BagSource``) doing the same, one pass that reads, joins
+and scores in one thread without units, store or provenance, the pipeline (`evaluate_bags`:
+units, store) and the whole `dispeval bag` command (run in this process, kernels loaded: the
+pipeline plus the provenance digests, the CSV export and the summary), each with --jobs 1 and
+2, and last the CPU time of each thread of a pipeline and a command run with --jobs 1 (how
+many cores they keep busy). Each is the best of --rounds, the rounds interleaved (the machine
+is shared: the load average is printed, and --idle-cores N waits, up to a minute, for N idle
+cores before each timed run of the pipeline). Asserts nothing (machines are noisy).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import io
 import math
 import os
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -94,8 +97,28 @@ def wait_for_idle(cores: float, patience: float = 60.0) -> None:
             return
 
 
+def rosbags_floor(bag: Path, config: CoreConfig) -> int | None:
+    """rosbags alone (the floor): open, iterate and deserialise every message; the GT frames.
+
+    rosbags' ``AnyReader`` and its own CDR deserialiser, not the project's reader. None for a
+    bag rosbags cannot open (plain MCAP files).
+    """
+    from rosbags.highlevel import AnyReader
+
+    if bag.is_file() and bag.suffix == ".mcap":
+        return None
+    gts = 0
+    topics = set(config.topics)
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic in topics]
+        for connection, _, raw in reader.messages(connections):
+            reader.deserialize(raw, connection.msgtype)
+            gts += connection.topic == GT_TOPIC
+    return gts
+
+
 def read_all(bag: Path, config: CoreConfig) -> int:
-    """The reader alone: open, iterate and deserialise every message; the GT frame count."""
+    """The project's reader alone (``BagSource``): open, iterate and deserialise every message."""
     gts = 0
     with BagSource(bag) as source:
         for topic, _, _ in source.messages(list(config.topics)):
@@ -112,6 +135,12 @@ def one_pass(bag: Path, config: CoreConfig) -> None:
                 core.score(frame_set)
     for frame_set in core.flush():
         core.score(frame_set)
+
+
+def pipeline_run(bag: Path, config: CoreConfig, out: Path, jobs: int = 1) -> None:
+    """``evaluate_bags`` of the bench's bag into a new results database at ``out``."""
+    with ResultsStore.create(out, {"jobs": jobs}) as store:
+        evaluate_bags([bag], config, store, jobs=jobs)
 
 
 def bag_command(bag: Path, out: Path, jobs: int) -> int:
@@ -148,6 +177,7 @@ def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[f
 
     reading = best(rounds, read)
     source.close()
+    floor_reading = rosbags_stage(bag, config, stop, rounds)
     core = EvaluationCore(config)
     frame_sets = [fs for topic, msg in messages for fs in core.push(topic, msg)]
     frame_sets += core.flush()
@@ -197,7 +227,8 @@ def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[f
     ms = 1e3
     costs = {
         "open the bag": (opened * ms, "per bag"),
-        "read + deserialise": (reading / frames * ms, "per frame"),
+        "read + deserialise (rosbags)": (floor_reading / frames * ms, "per frame"),
+        "read + deserialise (ours)": (reading / frames * ms, "per frame"),
         "decode pixels (estimates, GT)": (best(rounds, decode) / frames * ms, "per frame"),
         "join": (best(rounds, join) / frames * ms, "per frame"),
         "partition": (best(rounds, partition) / frames * ms, "per frame"),
@@ -210,10 +241,78 @@ def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[f
     return costs
 
 
+def rosbags_stage(bag: Path, config: CoreConfig, stop: int, rounds: int) -> float:
+    """rosbags reading and deserialising the first ``stop`` messages (the bag open), seconds.
+
+    NaN where rosbags cannot open the bag (plain MCAP files).
+    """
+    from rosbags.highlevel import AnyReader
+
+    if bag.is_file() and bag.suffix == ".mcap":
+        return math.nan
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic in config.topics]
+
+        def read() -> None:
+            for index, (connection, _, raw) in enumerate(reader.messages(connections)):
+                reader.deserialize(raw, connection.msgtype)
+                if index + 1 == stop:
+                    break
+
+        return best(rounds, read)
+
+
 def gts_in_bag(bag: Path) -> int:
     """Ground-truth frames in the bag."""
     with BagSource(bag) as source:
         return source.topics[GT_TOPIC].count
+
+
+def cpu_per_thread(run: Callable[[], Any]) -> tuple[float, dict[str, float]]:
+    """Wall seconds of ``run()`` and CPU seconds per thread name (from /proc; Linux only).
+
+    A sampler reads every thread's CPU time every 20 ms, so threads that end during the run
+    are counted up to their last sample. Empty where /proc/self/task is missing.
+    """
+    if not Path("/proc/self/task").is_dir():
+        started = time.perf_counter()
+        run()
+        return time.perf_counter() - started, {}
+    tick = os.sysconf("SC_CLK_TCK")
+    seen: dict[int, tuple[str, float]] = {}
+
+    def sample() -> dict[int, tuple[str, float]]:
+        names = {t.native_id: t.name.rstrip("0123456789_-") for t in threading.enumerate()}
+        found = {}
+        for task in os.listdir("/proc/self/task"):
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                with open(f"/proc/self/task/{task}/stat", encoding="ascii") as stat:
+                    fields = stat.read().rsplit(")", 1)[1].split()
+                native = int(task)
+                found[native] = (names.get(native, "?"), (int(fields[11]) + int(fields[12])) / tick)
+        return found
+
+    before = sample()
+    done = threading.Event()
+
+    def sampler() -> None:
+        while not done.is_set():
+            seen.update(sample())
+            time.sleep(0.02)
+
+    thread = threading.Thread(target=sampler, name="bench-sampler", daemon=True)
+    thread.start()
+    started = time.perf_counter()
+    run()
+    wall = time.perf_counter() - started
+    done.set()
+    thread.join()
+    seen.update(sample())
+    cpu: dict[str, float] = {}
+    for native, (name, seconds) in seen.items():
+        if name != "bench-sampler":
+            cpu[name] = cpu.get(name, 0.0) + seconds - before.get(native, (name, 0.0))[1]
+    return wall, {name: seconds for name, seconds in cpu.items() if seconds > 0.005}
 
 
 def main() -> None:
@@ -258,15 +357,16 @@ def main() -> None:
     for name, (value, per) in costs.items():
         print(f"  {name:32s} {value:7.2f} ms {per}")
     methods = len(METHODS)
+    floor = costs.pop("read + deserialise (rosbags)")[0]
     per_frame = sum(v * (methods if p == "per method-frame" else 1) for v, p in costs.values())
     per_frame -= costs["open the bag"][0]
-    reading = costs["read + deserialise"][0]
+    reading = floor if math.isfinite(floor) else costs["read + deserialise (ours)"][0]
     print(
         f"  one thread needs {per_frame:.1f} ms per frame (+ the open); 0.5× the reader alone "
         f"allows {2 * reading:.1f} ms per frame (+ the open)"
     )
 
-    reader = one = math.inf
+    reader = ours = one = math.inf
     pipeline = {1: math.inf, 2: math.inf}
     command = {1: math.inf, 2: math.inf}
     frames = {1: 0, 2: 0}
@@ -274,14 +374,19 @@ def main() -> None:
     for round_ in range(args.rounds):  # interleaved: a busy moment hurts every line alike
         wait_for_idle(args.idle_cores)
         started = time.perf_counter()
-        gts = read_all(bag, config)
+        floor_gts = rosbags_floor(bag, config)
         reader = min(reader, time.perf_counter() - started)
+        wait_for_idle(args.idle_cores)
+        started = time.perf_counter()
+        gts = read_all(bag, config)
+        ours = min(ours, time.perf_counter() - started)
+        if floor_gts is None:  # rosbags cannot open it: our reader is the floor
+            reader = ours
         one = min(one, best(1, lambda: one_pass(bag, config)))
         for jobs, seconds in pipeline.items():
             wait_for_idle(args.idle_cores)
             started = time.perf_counter()
-            with ResultsStore.create(root / f"run{jobs}-{round_}", {"jobs": jobs}) as store:
-                evaluate_bags([bag], config, store, jobs=jobs)
+            pipeline_run(bag, config, root / f"run{jobs}-{round_}", jobs)
             pipeline[jobs] = min(seconds, time.perf_counter() - started)
             wait_for_idle(args.idle_cores)
             started = time.perf_counter()
@@ -290,7 +395,12 @@ def main() -> None:
     method_frames = gts * methods
     floor = method_frames / reader
     print(
-        f"\nreader alone: {gts} frames in {reader:.2f} s: {floor:7.1f} method-frames/s (baseline)"
+        f"\nreader alone (rosbags AnyReader + its deserialiser): {gts} frames in {reader:.2f} s: "
+        f"{floor:7.1f} method-frames/s (baseline, the floor)"
+    )
+    print(
+        f"our reader alone (BagSource): {ours:.2f} s: {method_frames / ours:7.1f} "
+        f"method-frames/s ({reader / ours:.2f}× the floor)"
     )
     print(
         f"read + join + score in one pass, one thread (no units, store, provenance): {one:.2f} s: "
@@ -304,6 +414,21 @@ def main() -> None:
                 f"{rate:7.1f} method-frames/s ({rate / floor:.2f}× the reader alone, "
                 f"{one / seconds:.2f}× the one pass)"
             )
+    for what, runner in (
+        (
+            "evaluate_bags",
+            lambda: pipeline_run(bag, config, root / "threads"),
+        ),
+        ("the dispeval bag command", lambda: bag_command(bag, root / "threads-command", 1)),
+    ):
+        wait_for_idle(args.idle_cores)
+        wall, cpu = cpu_per_thread(runner)
+        threads = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in sorted(cpu.items()))
+        total = sum(cpu.values())
+        print(
+            f"CPU per thread, {what} --jobs 1: {wall:.2f} s wall, {threads}: {total:.2f} s, "
+            f"{total / wall:.2f} cores busy"
+        )
     load = " ".join(f"{value:.2f}" for value in os.getloadavg())
     print(f"load average after: {load}")
 

@@ -296,7 +296,8 @@ def gt_disparity(
     1000: millimetres → metres), converted by ``d = f·B/Z − doffs``; ``Z ≤ 0`` or non-finite
     gives ``0`` (no ground truth). If ``scale`` is given for a float image, the values are
     divided by it as well. The baseline is converted to metres when the camera's unit is m, cm
-    or mm; for other units the depth is taken to be in the camera's unit.
+    or mm; for other units the depth is taken to be in the camera's unit. A float32 disparity
+    image without a scale is returned as it is: the frame's own array, not a copy.
     """
     where = _where(topic, "ground-truth Image")
     if kind not in _GT_KINDS:
@@ -316,9 +317,10 @@ def gt_disparity(
         raise ConfigurationError(f"ground-truth scale must be a number > 0, got {scale!r}")
 
     if kind == "disparity":
+        if scale == 1.0:  # a float32 frame's own array (it owns a fresh copy), not a copy of it
+            return array.astype(np.float32, copy=False)
         values = array.astype(np.float32)
-        if scale != 1.0:
-            values /= np.float32(scale)
+        values /= np.float32(scale)
         return values
 
     if camera is None:

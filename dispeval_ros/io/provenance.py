@@ -16,6 +16,7 @@ from pathlib import Path
 
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.bags.chunked_mcap import fast_then_slow
 
 _CHUNK = 1 << 20
 
@@ -87,8 +88,14 @@ def stream_digests(
     wanted = [t for t in dict.fromkeys(topics) if t in source.topics]
     digests = {topic: hashlib.sha256() for topic in wanted}
     counts = dict.fromkeys(wanted, 0)
+
+    def library() -> Iterator[tuple[str, int, bytes | memoryview]]:
+        return _raw_messages(Path(bag), fmt, wanted)
+
+    mapped = source.serialized_messages(wanted)  # the same bytes, in the same order, no copy
+    stream = library() if mapped is None else fast_then_slow(mapped, library)
     try:
-        for topic, log_ns, raw in _raw_messages(Path(bag), fmt, wanted):
+        for topic, log_ns, raw in stream:
             digest = digests[topic]
             digest.update(struct.pack("<qQ", log_ns, len(raw)))
             digest.update(raw)

@@ -19,9 +19,9 @@ import os
 import sys
 import threading
 import traceback
-from collections import Counter, OrderedDict
+from collections import Counter, OrderedDict, deque
 from collections.abc import Generator, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from queue import Full, Queue
@@ -37,7 +37,7 @@ from dispeval_ros.io.store import (
     failure_record,
     prepare_unit,
 )
-from dispeval_ros.stream.core import CoreConfig, EvaluationCore
+from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.join import FrameSet
 
 DEFAULT_SLICE_NS = 5_000_000_000
@@ -49,6 +49,8 @@ UNITS_PER_WORKER = 4
 OPEN_BAGS_PER_PROCESS = 16
 READ_AHEAD = 16
 """Messages read ahead of the scoring (a few frames: each holds its messages in memory)."""
+FRAMES_IN_FLIGHT_PER_THREAD = 2
+"""Frames handed to each scoring thread ahead of the oldest one collected (none waits idle)."""
 _FIRST, _LAST = -(2**62), 2**62
 _T = TypeVar("_T")
 
@@ -316,30 +318,46 @@ def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Generator[_T, No
 def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResult:
     """Read, join and score one slice; per-frame problems are recorded, never raised.
 
-    The bag is read ahead on a thread while frames are scored, each frame's methods on
-    ``threads`` threads (see :func:`scoring_pool`); the rows are the same as in one thread.
+    The bag is read ahead on a thread while frames are scored on ``threads`` threads (see
+    :func:`scoring_pool`): whole frames side by side (partition and every method of a frame
+    in one thread), or, where a frame may need transforms read later from the stream, each
+    frame's methods side by side. The rows are the same as in one thread, in stream order.
     """
     result = UnitResult(unit)
-    core = EvaluationCore(config, keep_events=True, executor=scoring_pool(threads))
+    pool = scoring_pool(threads)
+    frames_side_by_side = pool is not None and config.tf_topic is None
+    core = EvaluationCore(config, keep_events=True, executor=None if frames_side_by_side else pool)
     inside = range(unit.start_ns, unit.stop_ns)
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
+    scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult]]] = deque()
+
+    def collect(frame_set: FrameSet[Any, Any], frame: FrameResult) -> None:
+        for method, scores in frame.scores.items():
+            result.frames.append(FrameScores(unit.sequence, frame.stamp, method, scores))
+            matched[method] += 1
+        for method in frame_set.estimates:
+            if method not in frame.scores:
+                failed[method] += 1
+        result.problems.extend(
+            Problem(unit.sequence, frame.stamp, method, message)
+            for method, message in frame.problems
+        )
+
+    def collect_oldest() -> None:
+        frame_set, future = scoring.popleft()
+        collect(frame_set, future.result())
 
     def handle(frame_sets: list[FrameSet[Any, Any]]) -> None:
         for frame_set in frame_sets:
             if frame_set.stamp not in inside:
                 continue
-            frame = core.score(frame_set)
-            for method, scores in frame.scores.items():
-                result.frames.append(FrameScores(unit.sequence, frame.stamp, method, scores))
-                matched[method] += 1
-            for method in frame_set.estimates:
-                if method not in frame.scores:
-                    failed[method] += 1
-            result.problems.extend(
-                Problem(unit.sequence, frame.stamp, method, message)
-                for method, message in frame.problems
-            )
+            if not frames_side_by_side or pool is None:
+                collect(frame_set, core.score(frame_set))
+                continue
+            scoring.append((frame_set, pool.submit(core.scorer(frame_set))))
+            while len(scoring) > FRAMES_IN_FLIGHT_PER_THREAD * threads:
+                collect_oldest()
 
     read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns
     read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
@@ -354,6 +372,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     except DispevalError as error:
         result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
     handle(core.flush())
+    while scoring:
+        collect_oldest()
     events = Counter(
         (kind, method) for kind, method, stamp in core.joiner.events or [] if stamp in inside
     )

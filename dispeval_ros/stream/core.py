@@ -378,6 +378,29 @@ class EvaluationCore:
 
     def score(self, frame_set: FrameSet[Any, Any]) -> FrameResult:
         """Score every estimate of one joined frame; per-frame problems are recorded, not raised."""
+        return self.scorer(frame_set)()
+
+    def scorer(self, frame_set: FrameSet[Any, Any]) -> Callable[[], FrameResult]:
+        """:meth:`score` of ``frame_set`` to run later, on any thread, as it would run now.
+
+        The calibration (the latest CameraInfo pair) is taken now, so frames scored side by
+        side, while later messages are pushed, give the same results as scored in turn.
+        """
+        infos = dict(self._infos)
+        calibration: Camera | DispevalError | None = None
+        try:
+            calibration = self.camera()
+        except DispevalError as error:  # raised when a frame needs it, as by score()
+            calibration = error
+        return lambda: self._score(frame_set, calibration, infos)
+
+    def _score(
+        self,
+        frame_set: FrameSet[Any, Any],
+        calibration: Camera | DispevalError | None,
+        infos: Mapping[str, Any],
+    ) -> FrameResult:
+        """:meth:`score` with the CameraInfo pair's camera (or its error) and the infos given."""
         result = FrameResult(frame_set.stamp, {}, {})
         estimates = {
             method: entry
@@ -403,11 +426,15 @@ class EvaluationCore:
             first = frames[next(iter(estimates))]
             if isinstance(first, DispevalError):
                 raise first
-            camera = self.camera(first.camera)
+            if isinstance(calibration, DispevalError):
+                raise calibration
+            camera = calibration if self.config.left_info_topic else first.camera
             if camera is None:  # scoring it would mix relative SZE into metric totals
                 raise CalibrationError(self._no_camera(first))
             if self.config.pointcloud:
-                gt = self.cloud_disparity(frame_set.gt, camera, first.disparity.shape).disparity
+                gt = self.cloud_disparity(
+                    frame_set.gt, camera, first.disparity.shape, infos
+                ).disparity
             else:
                 image = image_from_msg(frame_set.gt, self.config.gt_topic)
                 gt = gt_disparity(
@@ -609,21 +636,27 @@ class EvaluationCore:
         return self.transforms.lookup(camera_frame, cloud_frame)
 
     def cloud_disparity(
-        self, msg: Any, camera: Camera | None, shape: tuple[int, ...]
+        self,
+        msg: Any,
+        camera: Camera | None,
+        shape: tuple[int, ...],
+        infos: Mapping[str, Any] | None = None,
     ) -> CloudProjection:
         """Project a PointCloud2 into the left camera (the sparse GT of one frame).
 
-        Every problem is one line naming the topic: no x/y/z, no camera, no chain of static
-        transforms, a CameraInfo of another size than the disparity, or no point in view.
+        ``infos``: the CameraInfo messages by topic (default: the latest pushed). Every problem
+        is one line naming the topic: no x/y/z, no camera, no chain of static transforms, a
+        CameraInfo of another size than the disparity, or no point in view.
         """
         topic = self.config.gt_topic
         cloud = cloud_from_msg(msg, topic)
         left = self.config.left_info_topic
-        if camera is None or left is None or left not in self._infos:
+        infos = self._infos if infos is None else infos
+        if camera is None or left is None or left not in infos:
             raise CalibrationError(
                 f"no camera yet for the cloud on {topic}: waiting for the CameraInfo topics"
             )
-        view = rectified_camera_from_info(self._infos[left], left)
+        view = rectified_camera_from_info(infos[left], left)
         size = (view.height, view.width) if view.height > 0 and view.width > 0 else shape[:2]
         if tuple(size) != tuple(shape[:2]):
             raise InputError(

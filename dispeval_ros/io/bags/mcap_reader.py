@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from dispeval_ros.errors import DispevalError, InputError
+from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap, fast_then_slow, open_chunked
 from dispeval_ros.io.bags.common import (
     MAX_TIME,
     MessageTuple,
@@ -80,11 +81,13 @@ class McapBackend:
         self._decoders: dict[int, Callable[[bytes], Any]] = {}
         self._damage: str | None = None
         self._ordered = True
+        self._chunked: ChunkedMcap | None = None
         try:
             self._reader = SeekingReader(self._stream, validate_crcs=True)  # type: ignore[arg-type]
             summary = self._summary()
             if summary is not None:
                 self._indexed = True
+                self._chunked = open_chunked(file, summary)
                 self._channels = dict(summary.channels)
                 self._schemas = dict(summary.schemas)
                 stats = summary.statistics
@@ -184,7 +187,7 @@ class McapBackend:
                 )
             decoder = made
             self._decoders[channel.id] = decoder
-        return decoder(data)
+        return decoder(bytes(data) if isinstance(data, memoryview) else data)  # mcap_ros2: bytes
 
     def messages(
         self,
@@ -212,11 +215,29 @@ class McapBackend:
             window: dict[str, Any] = {"starting_at": start_ns, "ending_before": stop_ns}
         else:  # pragma: no cover - old mcap
             window = {"start_time": start_ns, "end_time": stop_ns}
-        stream = self._reader.iter_messages(topics=list(topics), **window)
-        payloads = (
-            (channel.topic, message.log_time, (schema, channel, message.data))
-            for schema, channel, message in stream
-        )
+
+        def library() -> Iterator[tuple[str, int, tuple[Any, Any, Any]]]:
+            stream = self._reader.iter_messages(topics=list(topics), **window)
+            return (
+                (channel.topic, message.log_time, (schema, channel, message.data))
+                for schema, channel, message in stream
+            )
+
+        chunked = self._chunked
+        if chunked is None:
+            payloads = library()
+        else:
+            wanted = set(topics)
+            channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
+            fast = (
+                (
+                    self._channels[cid].topic,
+                    log_ns,
+                    (self._schemas.get(self._channels[cid].schema_id), self._channels[cid], raw),
+                )
+                for cid, log_ns, raw in chunked.messages(channels, start_ns, stop_ns)
+            )
+            payloads = fast_then_slow(fast, library)
         yield from decoded_messages(
             self.path, "MCAP file", payloads, lambda item: self._decode(*item), on_error
         )
@@ -280,6 +301,8 @@ class McapBackend:
             raise InputError(damage)
 
     def close(self) -> None:
+        if self._chunked is not None:
+            self._chunked.close()
         self._raw.close()
 
 

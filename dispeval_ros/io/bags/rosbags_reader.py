@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 from dispeval_ros.errors import InputError
+from dispeval_ros.io.bags.chunked_mcap import fast_then_slow, mcap_summary, open_chunked
 from dispeval_ros.io.bags.common import (
     MAX_TIME,
     MessageTuple,
@@ -18,9 +20,16 @@ from dispeval_ros.io.bags.common import (
 
 
 class RosbagsBackend:
-    """rosbag2 folders, raw ``.db3`` files and ROS 1 bags through rosbags' ``AnyReader``."""
+    """rosbag2 folders, raw ``.db3`` files and ROS 1 bags through rosbags' ``AnyReader``.
 
-    def __init__(self, paths: list[Path], display: Path, ros1: bool) -> None:
+    ``storage``: the rosbag2 bag's one MCAP storage file, read chunk by chunk from a memory
+    map where it can be (see :mod:`~dispeval_ros.io.bags.chunked_mcap`), the messages
+    deserialised by rosbags as they would be otherwise.
+    """
+
+    def __init__(
+        self, paths: list[Path], display: Path, ros1: bool, storage: Path | None = None
+    ) -> None:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
@@ -48,6 +57,13 @@ class RosbagsBackend:
         empty = self.message_count == 0 or start >= MAX_TIME
         self.start_ns = 0 if empty else start
         self.end_ns = 0 if empty else end
+        # Messages (or files) compressed by rosbag2 itself, not by MCAP chunks, are decompressed
+        # by rosbags' reader: not read here.
+        modes = {str(getattr(r, "compression_mode", None)).lower() for r in reader.readers}
+        plain = not modes & {"message", "file"}
+        self._chunked = (
+            open_chunked(storage, mcap_summary(storage)) if storage is not None and plain else None
+        )
 
     def messages(
         self,
@@ -60,15 +76,31 @@ class RosbagsBackend:
         connections = [c for c in reader.connections if c.topic in topics]
         if not connections:
             return
-        stream = reader.messages(connections, start=start_ns, stop=stop_ns)
-        payloads = (
-            (connection.topic, log_ns, (raw, connection.msgtype))
-            for connection, log_ns, raw in stream
-        )
+
+        def library() -> Iterator[tuple[str, int, tuple[Any, str]]]:
+            stream = reader.messages(connections, start=start_ns, stop=stop_ns)
+            return (
+                (connection.topic, log_ns, (raw, connection.msgtype))
+                for connection, log_ns, raw in stream
+            )
+
+        chunked = self._chunked
+        msgtypes = {c.topic: c.msgtype for c in connections}
+        if chunked is None or len(msgtypes) != len(connections):  # one type per topic, or not
+            payloads = library()
+        else:
+            channels = [cid for cid, topic in chunked.topics.items() if topic in msgtypes]
+            fast = (
+                (chunked.topics[cid], log_ns, (raw, msgtypes[chunked.topics[cid]]))
+                for cid, log_ns, raw in chunked.messages(channels, start_ns, stop_ns)
+            )
+            payloads = fast_then_slow(fast, library)
         yield from decoded_messages(
             self.path, "bag", payloads, lambda item: reader.deserialize(*item), on_error
         )
 
     def close(self) -> None:
+        if self._chunked is not None:
+            self._chunked.close()
         if self._reader.stack is not None:
             self._reader.close()

@@ -20,6 +20,7 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
+from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap
 from dispeval_ros.io.bags.mcap_reader import McapBackend
 from dispeval_ros.io.bags.rosbags_reader import RosbagsBackend
 
@@ -107,13 +108,14 @@ def _open_file(path: Path) -> tuple[str, Backend]:
 
 
 def _open_rosbag2(folder: Path, fmt: str) -> Backend:
+    mcaps = sorted(folder.glob("*.mcap")) if fmt == "rosbag2-mcap" else []
+    storage = mcaps[0] if len(mcaps) == 1 else None
     try:
-        return _guard(folder, lambda: RosbagsBackend([folder], folder, ros1=False))
+        return _guard(folder, lambda: RosbagsBackend([folder], folder, False, storage))
     except InputError:
         # rosbags refuses MCAP storage without a valid footer (a recorder that was killed):
         # fall back to scanning the storage file with mcap, which yields what is readable.
         # Only then: a bag whose metadata is broken stays an error.
-        mcaps = sorted(folder.glob("*.mcap"))
         if fmt != "rosbag2-mcap" or len(mcaps) != 1 or not _lacks_end_magic(mcaps[0]):
             raise
         try:
@@ -189,6 +191,27 @@ class BagSource:
         if not wanted:
             return iter(())
         return self._backend.messages(wanted, start_ns, stop_ns, on_error)
+
+    def serialized_messages(
+        self, topics: Sequence[str]
+    ) -> Iterator[tuple[str, int, bytes | memoryview]] | None:
+        """``(topic, log time ns, serialized bytes)`` of ``topics`` in log-time order, unparsed.
+
+        Only where the bag is read chunk by chunk from a memory map (indexed MCAP storage): the
+        bytes are views of the map, no copy. None otherwise. Raises
+        :class:`~dispeval_ros.io.bags.chunked_mcap.NotChunked` at a chunk it cannot read (the
+        caller continues with a library reader; see
+        :func:`~dispeval_ros.io.bags.chunked_mcap.fast_then_slow`).
+        """
+        chunked: ChunkedMcap | None = getattr(self._backend, "_chunked", None)
+        if self._closed or chunked is None:
+            return None
+        wanted = set(topics)
+        channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
+        return (
+            (chunked.topics[cid], log_ns, raw)
+            for cid, log_ns, raw in chunked.messages(channels, None, None)
+        )
 
     def close(self) -> None:
         """Release the bag's files (idempotent)."""
