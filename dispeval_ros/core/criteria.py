@@ -300,13 +300,13 @@ def kmeans_thresholds(
     threshold falls in. A value equal to a threshold goes to the lower (farther) cluster.
     ``valid`` marks finite values > 0 only (:func:`valid_ground_truth`, maybe narrowed).
     """
-    if not valid.any():
+    flat_valid = _flat(valid, np.bool_)
+    count = int(np.count_nonzero(flat_valid))
+    if not count:
         raise EmptyGroundTruthError("the ground truth has no valid point (all NaN, inf or ≤ 0)")
     values = _flat(gt)
     if values.dtype not in (np.float32, np.float64):
         values = values.astype(np.float64)
-    flat_valid = _flat(valid, np.bool_)
-    count = int(np.count_nonzero(flat_valid))
     if count < SPARSE_KMEANS_SHARE * flat_valid.shape[0]:  # mostly invalid: read only the valid
         packed = np.empty(count + 1, dtype=values.dtype)  # + 1: the kernel writes one past
         kernels.pack_valid(values, flat_valid, packed)

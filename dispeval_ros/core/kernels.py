@@ -484,7 +484,8 @@ def partition_cells(
     changes = 0
     for i in range(1, pixels):  # vectorised
         changes += flat_cells[np.uint64(i)] != flat_cells[np.uint64(i - 1)]
-    if changes * RUN_PIXELS < pixels:  # long runs (dense GT): count and place whole runs
+    long_runs = changes * RUN_PIXELS < pixels  # dense GT: count and place whole runs
+    if long_runs:
         start = np.uint64(0)
         while start < end:
             stop = _run_end(flat_cells, start, end)
@@ -501,7 +502,7 @@ def partition_cells(
         next_slot[0, c] = offsets[c]  # from here on: where each cell's next pixel goes
     slots = next_slot[0]
     gather = sorted_values.shape[0] > 0
-    if changes * RUN_PIXELS < pixels:
+    if long_runs:
         start = np.uint64(0)
         while start < end:
             cell = flat_cells[start]
