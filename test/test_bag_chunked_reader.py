@@ -44,7 +44,7 @@ def read_all(path: Path, start: int | None = None, stop: int | None = None) -> l
 
 def uses_chunked(path: Path) -> bool:
     with BagSource(path) as source:
-        return getattr(source._backend, "_chunked", None) is not None
+        return source._backend.chunked is not None
 
 
 def assert_same_message(a: Any, b: Any, where: str = "msg") -> None:

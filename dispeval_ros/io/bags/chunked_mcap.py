@@ -93,6 +93,18 @@ class ChunkedMcap:
                 self.close()
                 raise NotChunked("a chunk index points outside the file")
 
+    def channels_of(self, topics: Iterable[str]) -> list[int]:
+        """The ids of the channels on ``topics``."""
+        wanted = set(topics)
+        return [channel for channel, topic in self.topics.items() if topic in wanted]
+
+    def topic_messages(
+        self, topics: Iterable[str], start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[tuple[str, int, memoryview]]:
+        """``(topic, log time, message bytes)`` of ``topics``, as :meth:`messages` gives them."""
+        for channel, log_ns, data in self.messages(self.channels_of(topics), start_ns, stop_ns):
+            yield self.topics[channel], log_ns, data
+
     def messages(
         self, channels: Iterable[int], start_ns: int | None, stop_ns: int | None
     ) -> Iterator[tuple[int, int, memoryview]]:

@@ -5,9 +5,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from dispeval_ros.errors import InputError
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap
 
 
 #: Values of :attr:`BagSource.format`.
@@ -70,6 +73,8 @@ class Backend(Protocol):
     start_ns: int
     end_ns: int
     message_count: int
+    chunked: ChunkedMcap | None
+    """The storage file read chunk by chunk from a memory map, where it can be."""
 
     def messages(
         self,

@@ -81,13 +81,13 @@ class McapBackend:
         self._decoders: dict[int, Callable[[bytes], Any]] = {}
         self._damage: str | None = None
         self._ordered = True
-        self._chunked: ChunkedMcap | None = None
+        self.chunked: ChunkedMcap | None = None
         try:
             self._reader = SeekingReader(self._stream, validate_crcs=True)  # type: ignore[arg-type]
             summary = self._summary()
             if summary is not None:
                 self._indexed = True
-                self._chunked = open_chunked(file, summary)
+                self.chunked = open_chunked(file, summary)
                 self._channels = dict(summary.channels)
                 self._schemas = dict(summary.schemas)
                 stats = summary.statistics
@@ -223,19 +223,19 @@ class McapBackend:
                 for schema, channel, message in stream
             )
 
-        chunked = self._chunked
+        chunked = self.chunked
         if chunked is None:
             payloads = library()
         else:
-            wanted = set(topics)
-            channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
             fast = (
                 (
                     self._channels[cid].topic,
                     log_ns,
                     (self._schemas.get(self._channels[cid].schema_id), self._channels[cid], raw),
                 )
-                for cid, log_ns, raw in chunked.messages(channels, start_ns, stop_ns)
+                for cid, log_ns, raw in chunked.messages(
+                    chunked.channels_of(topics), start_ns, stop_ns
+                )
             )
             payloads = fast_then_slow(fast, library)
         yield from decoded_messages(
@@ -301,8 +301,8 @@ class McapBackend:
             raise InputError(damage)
 
     def close(self) -> None:
-        if self._chunked is not None:
-            self._chunked.close()
+        if self.chunked is not None:
+            self.chunked.close()
         self._raw.close()
 
 

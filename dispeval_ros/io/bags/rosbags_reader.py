@@ -61,7 +61,7 @@ class RosbagsBackend:
         # by rosbags' reader: not read here.
         modes = {str(getattr(r, "compression_mode", None)).lower() for r in reader.readers}
         plain = not modes & {"message", "file"}
-        self._chunked = (
+        self.chunked = (
             open_chunked(storage, mcap_summary(storage)) if storage is not None and plain else None
         )
 
@@ -84,15 +84,14 @@ class RosbagsBackend:
                 for connection, log_ns, raw in stream
             )
 
-        chunked = self._chunked
+        chunked = self.chunked
         msgtypes = {c.topic: c.msgtype for c in connections}
         if chunked is None or len(msgtypes) != len(connections):  # one type per topic, or not
             payloads = library()
         else:
-            channels = [cid for cid, topic in chunked.topics.items() if topic in msgtypes]
             fast = (
-                (chunked.topics[cid], log_ns, (raw, msgtypes[chunked.topics[cid]]))
-                for cid, log_ns, raw in chunked.messages(channels, start_ns, stop_ns)
+                (topic, log_ns, (raw, msgtypes[topic]))
+                for topic, log_ns, raw in chunked.topic_messages(msgtypes, start_ns, stop_ns)
             )
             payloads = fast_then_slow(fast, library)
         yield from decoded_messages(
@@ -100,7 +99,7 @@ class RosbagsBackend:
         )
 
     def close(self) -> None:
-        if self._chunked is not None:
-            self._chunked.close()
+        if self.chunked is not None:
+            self.chunked.close()
         if self._reader.stack is not None:
             self._reader.close()

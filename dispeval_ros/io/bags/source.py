@@ -20,7 +20,6 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
-from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap
 from dispeval_ros.io.bags.mcap_reader import McapBackend
 from dispeval_ros.io.bags.rosbags_reader import RosbagsBackend
 
@@ -203,15 +202,10 @@ class BagSource:
         caller continues with a library reader; see
         :func:`~dispeval_ros.io.bags.chunked_mcap.fast_then_slow`).
         """
-        chunked: ChunkedMcap | None = getattr(self._backend, "_chunked", None)
+        chunked = self._backend.chunked
         if self._closed or chunked is None:
             return None
-        wanted = set(topics)
-        channels = [cid for cid, topic in chunked.topics.items() if topic in wanted]
-        return (
-            (chunked.topics[cid], log_ns, raw)
-            for cid, log_ns, raw in chunked.messages(channels, None, None)
-        )
+        return chunked.topic_messages(topics, None, None)
 
     def close(self) -> None:
         """Release the bag's files (idempotent)."""
