@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -321,6 +321,39 @@ def test_est_range_is_inclusive_and_outside_is_missing() -> None:
     # without a range every positive finite value is valid
     unbounded = Evaluator(criteria=("all",), missing="thesis").score(gt, est)
     assert unbounded["all"]["density"] == 1.0
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    bounds=st.tuples(
+        st.floats(allow_nan=True, allow_infinity=True, width=64),
+        st.floats(allow_nan=True, allow_infinity=True, width=64),
+    ),
+    policy=st.sampled_from(POLICIES),
+)
+@example(bounds=(-INF, INF), policy="thesis")
+@example(bounds=(0.1, 0.3), policy="interpolate")
+def test_est_range_selects_exactly_the_float32_values_within_float64_bounds(
+    bounds: tuple[float, float], policy: str
+) -> None:
+    """The kernels compare float32 estimates with float32 bounds: the same values must pass.
+
+    The estimates are each bound's float32 neighbours (and 0, inf, nan); density counts
+    those with ``0 < v``, ``lo <= v <= hi`` (compared in float64) and ``v`` finite.
+    """
+    lo, hi = bounds
+    candidates = [0.0, 1e-45, 1.0, INF, NAN, np.finfo(np.float32).max]
+    for bound in (lo, hi):
+        if math.isfinite(bound) and abs(bound) < 3e38:
+            near = np.float32(bound)
+            candidates += [near, np.nextafter(near, np.float32(INF)), np.nextafter(near, -INF)]
+    est = np.array([candidates], np.float32)
+    values = est.astype(np.float64)[0]
+    with np.errstate(invalid="ignore"):
+        expected = (values > 0) & (values >= lo) & (values <= hi) & np.isfinite(values)
+    gt = np.ones_like(est)
+    got = Evaluator(criteria=("all",), missing=policy).score(gt, est, est_range=(lo, hi))
+    assert got["all"]["density"] == np.count_nonzero(expected) / est.size
 
 
 def test_missing_kinds_nan_inf_zero_negative() -> None:

@@ -51,15 +51,40 @@ FIELD_LRC = FIELD_N_VPE + 3
 FIELD_COUNT = FIELD_N_VPE + 4
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _float32_bounds(lo: float, hi: float) -> tuple[np.float32, np.float32]:  # pragma: no cover
+    """``[lo, hi]`` as float32 bounds that select the same float32 values, never infinity.
+
+    Comparing float32 values with float32 bounds, not float64 ones, halves a pass's vector
+    width cost (no widening). NaN bounds stay NaN (nothing is valid).
+    """
+    lo32 = np.float32(lo)
+    if lo32 < lo:
+        lo32 = np.nextafter(lo32, np.float32(np.inf))
+    hi32 = np.float32(hi)
+    if hi32 > hi:
+        hi32 = np.nextafter(hi32, np.float32(-np.inf))
+    largest = np.float32(np.finfo(np.float32).max)
+    if hi32 > largest:  # noqa: PLR1730 - not min(): a NaN bound must stay NaN
+        hi32 = largest
+    return lo32, hi32
+
+
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
-def _code_row(row: np.ndarray, lo: float, hi: float, out: np.ndarray) -> int:  # pragma: no cover
-    """Copy one row with validity in the sign (missing → -0.0); the number of valid values."""
+def _code_row(
+    row: np.ndarray, lo: np.float32, hi: np.float32, out: np.ndarray
+) -> int:  # pragma: no cover
+    """Copy one row with validity in the sign (missing → -0.0); the number of valid values.
+
+    ``lo`` and ``hi`` come from :func:`_float32_bounds` (so ``hi`` also excludes infinity).
+    """
     count = 0
+    zero = np.float32(0.0)
     for x in range(row.shape[0]):
         value = row[x]
-        valid = (value > 0.0) & (value >= lo) & (value <= hi) & (value < np.inf)
-        out[x] = value if valid else -0.0
-        count += 1 if valid else 0
+        valid = (value > zero) & (value >= lo) & (value <= hi)
+        out[x] = value if valid else np.float32(-0.0)
+        count += np.int32(valid)
     return count
 
 
@@ -117,8 +142,9 @@ def normalise_estimate(
     height, width = est.shape
     first_row = -1
     last_row = -1
+    lo32, hi32 = _float32_bounds(lo, hi)
     for y in range(height):
-        count = _code_row(est[y], lo, hi, out[y])
+        count = _code_row(est[y], lo32, hi32, out[y])
         if count == 0:
             continue
         if first_row < 0:
@@ -148,10 +174,14 @@ def gather_estimate(
     """
     for k in range(order.shape[0]):  # a plain gather, then a contiguous pass: both vectorise
         out[k] = estimate[order[k]]
+    if coded:  # validity is already in the sign
+        return
+    lo32, hi32 = _float32_bounds(lo, hi)
+    zero = np.float32(0.0)
     for k in range(order.shape[0]):
         raw = out[k]
-        valid = (raw > 0.0) & (raw >= lo) & (raw <= hi) & (raw < np.inf)
-        out[k] = raw if valid else (raw if coded else -0.0)
+        valid = (raw > zero) & (raw >= lo32) & (raw <= hi32)
+        out[k] = raw if valid else np.float32(-0.0)
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
