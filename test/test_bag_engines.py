@@ -343,6 +343,44 @@ def test_each_bag_is_opened_once_per_process(
     assert tables_but_run(tmp_path) == tables_but_run(reference)
 
 
+def bags_open_here() -> list[str]:
+    """The bags a pool worker holds open (run in the worker)."""
+    return sorted(key[0] for key in units_module._open_bags)
+
+
+def test_pool_workers_open_the_first_bag_before_any_unit(drives: list[Path]) -> None:
+    """``start`` forks the workers and each opens the first bag while the driver plans."""
+    executor = executors_module.PoolExecutor(config(), 2)
+    try:
+        executor.start(drives)
+        pool = executor._ensure_pool()
+        held = [pool.submit(bags_open_here).result(timeout=60) for _ in range(4)]
+        pids = {pool.submit(os.getpid).result(timeout=60) for _ in range(8)}
+    finally:
+        executor.close()
+    assert held == [[str(drives[0])]] * 4
+    assert len(pids) <= 2
+
+
+def test_a_first_bag_that_cannot_open_leaves_the_workers_to_report_it(
+    drives: list[Path], tmp_path: Path
+) -> None:
+    """A worker that cannot open the first bag starts anyway; the bag's units say why."""
+    broken = tmp_path / "broken.mcap"
+    broken.write_bytes(b"not a bag")
+    executor = executors_module.PoolExecutor(config(), 2)
+    try:
+        executor.start([broken, *drives])
+        executor.submit(0, Unit(broken, "broken", "000000", 0, 10**9, 0))
+        [(index, outcome)] = executor.completed()
+    finally:
+        executor.close()
+    assert index == 0
+    assert isinstance(outcome, UnitRows)
+    assert outcome.problems == 1
+    assert any(f"{broken}: cannot read bag" in str(row) for row in outcome.rows.problem_rows)
+
+
 def test_auto_slices_follow_length_and_workers_and_resume_keeps_them(
     drives: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -108,6 +108,7 @@ def evaluate_bags(
     engine = make_executor(config, jobs, scheduler) if executor is None else executor
     side = _Alongside(alongside)
     try:
+        engine.start(bags)
         units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers)
         engine.check(bags)
         report = RunReport(units_skipped=skipped, failed_before=failed_before)

@@ -121,6 +121,9 @@ class DaskExecutor:
         """The Dask client (to inspect or drive the cluster)."""
         return self._client
 
+    def start(self, paths: Sequence[Path]) -> None:
+        """Nothing to start: the cluster's workers are running."""
+
     def check(self, paths: Sequence[Path]) -> None:
         """Every worker reads every bag and runs this dispeval version (else one line)."""
         from dispeval_ros import __version__
