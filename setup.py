@@ -2,35 +2,62 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
+import subprocess
+import sys
+import tempfile
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # buildtools, also under colcon
+from buildtools.requirements import requirements
 
 PACKAGE = "dispeval_ros"
+COMPILE_AHEAD = "from dispeval_ros.jitcache import compile_ahead; compile_ahead()"
 
 
-def requirements() -> list[str]:
-    """Runtime requirements for pip; none declared to setuptools in a ROS build.
+class BuildPyWithKernels(build_py):
+    """build_py, then the numba kernels compiled into the built package.
 
-    Under ``colcon build`` (``AMENT_PREFIX_PATH`` set) package.xml and rosdep provide the
-    dependencies (numba, OpenCV from apt have other distribution names or older versions), and
-    Humble's setuptools would make the node scripts refuse to start over a name mismatch.
-    OpenCV is required only when no cv2 (e.g. ROS's python3-opencv) is importable.
+    A fresh install then loads them on its first run instead of compiling for seconds
+    (numba's cache is keyed by source content, interpreter and CPU, so this holds where the
+    package is built and used on one machine, as ``pip install .`` and ``colcon build`` do;
+    elsewhere the kernels compile on first use as before). Skipped, with a note, when the
+    build environment cannot import the package (its requirements are missing) or when
+    ``DISPEVAL_COMPILE_AHEAD=0``.
     """
-    if os.environ.get("AMENT_PREFIX_PATH"):
-        return ["setuptools"]
-    required = [
-        "numpy>=1.21",
-        "numba>=0.55",
-        "rosbags>=0.11",
-        "mcap>=1.2",
-        "mcap-ros2-support>=0.5",
-    ]
-    if importlib.util.find_spec("cv2") is None:
-        required.append("opencv-python-headless>=4.5")
-    return required
+
+    def run(self) -> None:
+        super().run()
+        skipped = os.environ.get("DISPEVAL_COMPILE_AHEAD") == "0" or self.dry_run
+        if skipped or getattr(self, "editable_mode", False):  # editable: the source's own cache
+            return
+        env = {name: value for name, value in os.environ.items() if name != "NUMBA_CACHE_DIR"}
+        env["PYTHONPATH"] = os.pathsep.join(
+            [str(Path(self.build_lib).resolve()), *filter(None, [env.get("PYTHONPATH")])]
+        )
+        with tempfile.TemporaryDirectory() as folder:  # not the source tree: the built package
+            try:
+                done = subprocess.run(
+                    [sys.executable, "-c", COMPILE_AHEAD],
+                    cwd=folder,
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                    timeout=900,
+                    check=False,
+                )
+                failed = done.returncode != 0 and (done.stderr.strip().splitlines() or ["?"])[-1]
+            except (OSError, subprocess.TimeoutExpired) as error:
+                failed = str(error)
+        if failed:
+            print(
+                f"dispeval_ros: kernels not compiled ahead ({failed}); they compile on first use",
+                file=sys.stderr,
+            )
 
 
 DDS = ["cyclonedds>=0.10.5"]
@@ -40,6 +67,8 @@ DASK = ["dask[distributed]>=2023.1"]
 # moocore: reference non-dominated sorting for bench/bench_models.py (never imported by the package)
 TEST = [
     "pytest>=7,<9",
+    "setuptools>=61",  # test_jitcache builds the wheel without build isolation
+    "wheel",
     "hypothesis>=6",
     "pillow>=9",
     "playwright>=1.40",
@@ -92,5 +121,6 @@ setup(
     maintainer_email="dispeval-ros@example.org",
     description="Evaluate stereo disparity maps by set-partition criteria, SZE/BMPRE and Pareto models.",
     license="Apache-2.0",
+    cmdclass={"build_py": BuildPyWithKernels},
     entry_points={"console_scripts": console_scripts()},
 )

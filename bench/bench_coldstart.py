@@ -17,6 +17,12 @@ capability that lets root write to read-only folders (``setpriv``).
 
 ``--package-root DIR`` measures another checkout (e.g. ``git archive <commit>`` unpacked) with
 the same interpreter, for a before/after comparison in one session.
+
+``--fresh-install`` measures what a user gets: ``pip install .`` of the checkout into a new
+venv (the README's first command; needs the package index), then ``dispeval demo`` twice,
+counting the kernels each run compiles (numba's cache log). Once as built by default (the
+kernels compiled into the wheel by ``setup.py``) and once with ``DISPEVAL_COMPILE_AHEAD=0``
+(compiled on first use), with the install times.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import venv
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "dispeval_ros"
@@ -66,10 +73,14 @@ DROP_ROOT_WRITE = ["setpriv", "--bounding-set", "-dac_override,-dac_read_search,
 
 
 def run(
-    code: str | None, env: dict[str, str], cwd: Path, prefix: list[str] | None = None
+    code: str | None,
+    env: dict[str, str],
+    cwd: Path,
+    prefix: list[str] | None = None,
+    python: str = sys.executable,
 ) -> tuple[float, float, str]:
-    """Wall and CPU seconds of one ``dispeval demo`` in a new process, and its stderr."""
-    command = [sys.executable, "-c", code] if code else [sys.executable, "-m", "dispeval_ros"]
+    """Wall and CPU seconds of one ``dispeval demo`` in a new process, and its stdout + stderr."""
+    command = [python, "-c", code] if code else [python, "-m", "dispeval_ros"]
     command = [*(prefix or []), *command]
     if not code:
         command += ["demo", "--out", tempfile.mkdtemp(prefix="dispeval-coldstart-")]
@@ -81,7 +92,7 @@ def run(
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if done.returncode != 0:
         raise SystemExit(f"dispeval demo failed ({done.returncode}):\n{done.stderr[-2000:]}")
-    return wall, cpu, done.stderr
+    return wall, cpu, done.stdout + done.stderr
 
 
 def cold_and_warm(
@@ -105,6 +116,7 @@ def main() -> None:
     parser.add_argument("--breakdown", action="store_true", help="CPU seconds per kernel")
     parser.add_argument("--read-only", action="store_true", help="also read-only installs")
     parser.add_argument("--package-root", type=Path, help="measure this checkout instead")
+    parser.add_argument("--fresh-install", action="store_true", help="pip install into new venvs")
     args = parser.parse_args()
     base = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     # The runs start in the measured checkout: `python -m` puts the working folder first on
@@ -127,6 +139,41 @@ def main() -> None:
         print(report.rstrip())
     if args.read_only:
         read_only_installs(base)
+    if args.fresh_install:
+        fresh_installs(base, checkout)
+
+
+NOT_SOURCES = shutil.ignore_patterns(
+    ".git", ".venv*", "build", "install", "log", "*.egg-info", "__pycache__", ".hypothesis"
+)
+
+
+def fresh_installs(base: dict[str, str], checkout: Path) -> None:
+    """``pip install .`` into a new venv, then two demos: kernels compiled ahead, then not."""
+    for label, ahead in (("kernels compiled into the wheel (default)", "1"), ("not", "0")):
+        with tempfile.TemporaryDirectory(prefix="dispeval-install-") as folder:
+            root = Path(folder)
+            shutil.copytree(checkout, root / "source", ignore=NOT_SOURCES)
+            venv.create(root / "venv", with_pip=True)
+            python = str(root / "venv" / "bin" / "python")
+            env = {k: v for k, v in base.items() if k != "PYTHONPATH"}
+            started = time.perf_counter()
+            subprocess.run(
+                [python, "-m", "pip", "install", "--quiet", str(root / "source")],
+                env={**env, "DISPEVAL_COMPILE_AHEAD": ahead},
+                check=True,
+                capture_output=True,
+            )
+            installed = time.perf_counter() - started
+            title = label if ahead == "1" else "DISPEVAL_COMPILE_AHEAD=0: compiled on first use"
+            print(f"\nfresh install, {title}: pip install . took {installed:.1f} s")
+            for run_name in ("first demo", "second demo"):
+                wall, cpu, log = run(None, {**env, "NUMBA_DEBUG_CACHE": "1"}, root, python=python)
+                compiled = log.count("data saved")
+                print(
+                    f"  {run_name:12s} {wall:6.2f} s wall  {cpu:6.2f} s CPU  "
+                    f"kernels compiled: {compiled}, loaded: {log.count('data loaded')}"
+                )
 
 
 def read_only_installs(base: dict[str, str]) -> None:

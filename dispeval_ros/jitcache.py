@@ -6,10 +6,17 @@ or read-only installs). When neither can be written (a read-only container runni
 without a home), it would refuse to cache at all and every process would compile again; the
 kernels then cache in a per-user folder under the temporary directory instead. An explicit
 ``NUMBA_CACHE_DIR`` always wins.
+
+A wheel (``pip install .``) and ``colcon build`` carry the kernels compiled already:
+``setup.py`` runs :func:`compile_ahead` on the built package, so its ``__pycache__`` holds
+them. numba keys them by source content, interpreter and CPU, so they load wherever the
+package was built; elsewhere they compile on first use.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import tempfile
 from pathlib import Path
@@ -47,3 +54,16 @@ def ensure_cache_location(source_dir: Path = PACKAGE_DIR / "core") -> str | None
         return None  # not even the temporary folder: numba's own error says so
     numba.config.CACHE_DIR = str(fallback)  # type: ignore[attr-defined]
     return str(fallback)
+
+
+def compile_ahead() -> None:
+    """Compile (into their cache) the kernels a first run needs: the demo, run quietly once.
+
+    The demo scores a bag offline, in robot mode and without GT, so it calls every kernel
+    with the argument types of real runs; what it leaves out compiles on first use.
+    """
+    from dispeval_ros.cli.main import main
+
+    with tempfile.TemporaryDirectory() as out, contextlib.redirect_stdout(io.StringIO()):
+        if main(["demo", "--out", out, "--json"]) != 0:
+            raise SystemExit("the demo failed: kernels not compiled ahead")

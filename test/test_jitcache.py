@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numba
@@ -54,3 +59,56 @@ def test_explicit_numba_cache_dir_wins(tmp_path: Path, monkeypatch: pytest.Monke
     monkeypatch.setattr(jitcache, "_writable", lambda folder: False)
     assert jitcache.ensure_cache_location(tmp_path / "core") is None
     assert str(tmp_path) == numba.config.CACHE_DIR
+
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+NOT_SOURCES = shutil.ignore_patterns(
+    ".git", ".venv*", "build", "install", "log", "*.egg-info", "__pycache__", ".hypothesis"
+)
+
+
+@pytest.mark.slow
+def test_the_wheel_carries_compiled_kernels_that_a_first_demo_loads(tmp_path: Path) -> None:
+    """A wheel built from the repository holds the kernels the demo needs, compiled.
+
+    Installed elsewhere (new paths and file times, as pip does), its first demo loads every
+    kernel and compiles none: what a fresh ``pip install .`` gives on the machine it built on.
+    """
+    source = tmp_path / "source"
+    shutil.copytree(REPOSITORY, source, ignore=NOT_SOURCES)
+    environment = {name: value for name, value in os.environ.items() if name != "NUMBA_CACHE_DIR"}
+    environment.pop("PYTHONPATH", None)
+    wheels = tmp_path / "wheels"
+    built = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation",
+         "--wheel-dir", str(wheels), str(source)],
+        env=environment, capture_output=True, text=True, timeout=900, check=False,
+    )  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    assert "not compiled ahead" not in built.stderr, built.stderr
+    [wheel] = wheels.glob("dispeval_ros-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        cached = {Path(name).name for name in archive.namelist() if "/__pycache__/" in name}
+    for kernel in ("partition_cells", "accumulate_cells", "forward_warp_occlusion"):
+        assert any(
+            name.startswith(f"kernels.{kernel}-") and name.endswith(".nbi") for name in cached
+        )
+    assert any(name.endswith(".nbc") for name in cached)
+
+    site = tmp_path / "site"
+    installed = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(site),
+         str(wheel)],
+        env=environment, capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert installed.returncode == 0, installed.stderr
+    demo = subprocess.run(
+        [sys.executable, "-c", "from dispeval_ros.cli.main import main; raise SystemExit(main())",
+         "demo", "--out", str(tmp_path / "demo"), "--json"],
+        env={**environment, "PYTHONPATH": str(site), "NUMBA_DEBUG_CACHE": "1"},
+        cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert demo.returncode == 0, demo.stderr
+    assert str(site) in demo.stdout  # the installed copy ran, not the source tree
+    assert "data loaded" in demo.stdout
+    assert "data saved" not in demo.stdout, "the first demo compiled kernels the wheel lacks"
