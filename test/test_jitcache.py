@@ -89,6 +89,8 @@ def test_the_wheel_carries_compiled_kernels_that_a_first_demo_loads(tmp_path: Pa
     [wheel] = wheels.glob("dispeval_ros-*.whl")
     with zipfile.ZipFile(wheel) as archive:
         cached = {Path(name).name for name in archive.namelist() if "/__pycache__/" in name}
+        tops = {name.split("/")[0] for name in archive.namelist()}
+    assert all(top.startswith("dispeval_ros") for top in tops), tops  # not buildtools, test
     for kernel in ("partition_cells", "accumulate_cells", "forward_warp_occlusion"):
         assert any(
             name.startswith(f"kernels.{kernel}-") and name.endswith(".nbi") for name in cached
