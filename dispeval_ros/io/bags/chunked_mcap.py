@@ -43,7 +43,7 @@ class NotChunked(Exception):
     """A chunk this reader does not read (damaged, or a layout it does not know)."""
 
 
-def _decompress(compression: str, data: memoryview, size: int) -> memoryview:
+def _decompress(compression: str, data: memoryview) -> memoryview:
     """A chunk's records, decompressed (as the libraries do: lz4 frames, zstd)."""
     if compression == "":
         return data
@@ -55,8 +55,6 @@ def _decompress(compression: str, data: memoryview, size: int) -> memoryview:
         raw = _zstd_decompress(data)
     else:
         raise NotChunked(f"unknown chunk compression {compression!r}")
-    if len(raw) != size:
-        raise NotChunked("decompressed chunk size does not match its record")
     return memoryview(raw)
 
 
@@ -180,7 +178,7 @@ class ChunkedMcap:
         at += 8
         if at + stored > len(view):
             raise NotChunked("chunk records run past the chunk")
-        records = _decompress(compression, view[at : at + stored], size)
+        records = _decompress(compression, view[at : at + stored])
         if len(records) != size:
             raise NotChunked("chunk size does not match its record")
         if crc and zlib.crc32(records) != crc:
