@@ -325,8 +325,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     """
     result = UnitResult(unit)
     pool = scoring_pool(threads)
-    frames_side_by_side = pool is not None and config.tf_topic is None
-    core = EvaluationCore(config, keep_events=True, executor=None if frames_side_by_side else pool)
+    frame_pool = pool if config.tf_topic is None else None  # whole frames side by side
+    core = EvaluationCore(config, keep_events=True, executor=pool if frame_pool is None else None)
     inside = range(unit.start_ns, unit.stop_ns)
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
@@ -352,10 +352,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         for frame_set in frame_sets:
             if frame_set.stamp not in inside:
                 continue
-            if not frames_side_by_side or pool is None:
+            if frame_pool is None:
                 collect(frame_set, core.score(frame_set))
                 continue
-            scoring.append((frame_set, pool.submit(core.scorer(frame_set))))
+            scoring.append((frame_set, frame_pool.submit(core.scorer(frame_set))))
             while len(scoring) > FRAMES_IN_FLIGHT_PER_THREAD * threads:
                 collect_oldest()
 
