@@ -97,24 +97,38 @@ def wait_for_idle(cores: float, patience: float = 60.0) -> None:
             return
 
 
+def rosbags_opens(bag: Path) -> bool:
+    """Whether rosbags' ``AnyReader`` opens the bag (not plain MCAP files)."""
+    return not (bag.is_file() and bag.suffix == ".mcap")
+
+
+def rosbags_read(reader: Any, config: CoreConfig, stop: int | None = None) -> int:
+    """Iterate and deserialise the configured topics with rosbags; the GT frames read.
+
+    rosbags' own CDR deserialiser, not the project's reader; the first ``stop`` messages only
+    when given.
+    """
+    connections = [c for c in reader.connections if c.topic in config.topics]
+    gts = 0
+    for index, (connection, _, raw) in enumerate(reader.messages(connections)):
+        reader.deserialize(raw, connection.msgtype)
+        gts += connection.topic == GT_TOPIC
+        if index + 1 == stop:
+            break
+    return gts
+
+
 def rosbags_floor(bag: Path, config: CoreConfig) -> int | None:
     """rosbags alone (the floor): open, iterate and deserialise every message; the GT frames.
 
-    rosbags' ``AnyReader`` and its own CDR deserialiser, not the project's reader. None for a
-    bag rosbags cannot open (plain MCAP files).
+    None for a bag rosbags cannot open.
     """
     from rosbags.highlevel import AnyReader
 
-    if bag.is_file() and bag.suffix == ".mcap":
+    if not rosbags_opens(bag):
         return None
-    gts = 0
-    topics = set(config.topics)
     with AnyReader([bag]) as reader:
-        connections = [c for c in reader.connections if c.topic in topics]
-        for connection, _, raw in reader.messages(connections):
-            reader.deserialize(raw, connection.msgtype)
-            gts += connection.topic == GT_TOPIC
-    return gts
+        return rosbags_read(reader, config)
 
 
 def read_all(bag: Path, config: CoreConfig) -> int:
@@ -248,18 +262,10 @@ def rosbags_stage(bag: Path, config: CoreConfig, stop: int, rounds: int) -> floa
     """
     from rosbags.highlevel import AnyReader
 
-    if bag.is_file() and bag.suffix == ".mcap":
+    if not rosbags_opens(bag):
         return math.nan
     with AnyReader([bag]) as reader:
-        connections = [c for c in reader.connections if c.topic in config.topics]
-
-        def read() -> None:
-            for index, (connection, _, raw) in enumerate(reader.messages(connections)):
-                reader.deserialize(raw, connection.msgtype)
-                if index + 1 == stop:
-                    break
-
-        return best(rounds, read)
+        return best(rounds, lambda: rosbags_read(reader, config, stop))
 
 
 def gts_in_bag(bag: Path) -> int:
