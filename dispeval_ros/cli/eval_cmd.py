@@ -353,15 +353,20 @@ def _camera_dict(camera: Camera | None) -> dict[str, float] | None:
     )
 
 
+def _entries(scored: _Scored) -> list[dict[str, object]]:
+    """The JSON ``frames`` entries of one frame: a method's scores, with the frame and source."""
+    where = {"frame": scored.frame.frame, "gt_source": scored.frame.gt_source}
+    return [
+        {"method": name, "criteria": s.to_dict(), **where} for name, s in scored.results.items()
+    ]
+
+
 def _document(args: argparse.Namespace, evaluator: Evaluator, scored: _Scored) -> dict[str, object]:
     """One frame's JSON (the shape of a single-frame run, without the provenance)."""
     frame, reference, pair = scored.frame, scored.reference, scored.pair
     first = next(iter(scored.results.values()))
-    where = {"frame": frame.frame, "gt_source": frame.gt_source}
     document: dict[str, object] = {
-        "frames": [
-            {"method": name, "criteria": s.to_dict(), **where} for name, s in scored.results.items()
-        ],
+        "frames": _entries(scored),
         "camera": _camera_dict(frame.camera),
         "sze_relative": frame.camera is None,
         "missing": evaluator.missing,
@@ -381,7 +386,8 @@ def _document(args: argparse.Namespace, evaluator: Evaluator, scored: _Scored) -
             "measures": list(GT_FREE_SCORED),
             "in_objectives": bool(args.gt_free_objectives) or reference is None,
         },
-        **where,
+        "frame": frame.frame,
+        "gt_source": frame.gt_source,
         "ground_truth": frame.label or None,
     }
     if scored.model is not None:
@@ -499,7 +505,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             document = {
                 "scene": str(args.scene),
-                "frames": [entry for d in documents for entry in d["frames"]],  # type: ignore[attr-defined]
+                "frames": [entry for s in scored for entry in _entries(s)],
                 "per_frame": documents,
             }
         document["provenance"] = _provenance(args, evaluator, scored, inputs)
