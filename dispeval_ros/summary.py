@@ -15,11 +15,11 @@ import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.measures import applies
+from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.store import MatchCounts
 
 GRANULARITIES = ("sequence", "frame")
-DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
 
 
 @dataclass
@@ -134,15 +134,19 @@ def _objectives(
 
 def summarize(
     store: ScoreSource,
-    measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES,
+    measures: Sequence[str] | None = None,
     granularity: str = "sequence",
 ) -> RunSummary:
-    """Models per sequence and overall, objectives per (criterion, sequence) or (criterion, frame)."""
+    """Models per sequence and overall, objectives per (criterion, sequence) or (criterion, frame).
+
+    ``measures`` empty or None: :func:`default_objective_measures` of the measures stored.
+    """
     if granularity not in GRANULARITIES:
         raise ConfigurationError(
             f"objectives must be one of {', '.join(GRANULARITIES)}, got '{granularity}'"
         )
     computed = store.measures()
+    measures = measures or default_objective_measures(computed)
     unknown = [m for m in measures if computed and m not in computed]
     if unknown:
         raise ConfigurationError(
@@ -172,7 +176,7 @@ def summarize(
 
 def objective_table(
     store: ScoreSource,
-    measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES,
+    measures: Sequence[str] | None = None,
     granularity: str = "sequence",
 ) -> tuple[list[str], list[str], np.ndarray]:
     """Methods, objective names and matrix over every sequence, as the overall summary uses.

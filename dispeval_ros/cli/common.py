@@ -11,9 +11,14 @@ import numpy as np
 
 from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator, Scores
 from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
-from dispeval_ros.core.objectives import objective_matrix
+from dispeval_ros.core.objectives import (
+    DEFAULT_OBJECTIVES_TEXT,
+    GT_FREE_OBJECTIVE,
+    default_objective_measures,
+    objective_matrix,
+)
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
+from dispeval_ros.summary import GRANULARITIES
 
 
 def comma_list(text: str) -> list[str]:
@@ -132,12 +137,6 @@ def camera_from_args(args: argparse.Namespace) -> Camera | None:
     return None
 
 
-def objective_measures(measures: Sequence[str]) -> list[str]:
-    """Measures that form model objectives: SZE and BMPRE where chosen, else all lower-is-better."""
-    preferred = [m for m in ("sze", "bmpre") if m in measures]
-    return preferred or [m for m in measures if m != "density"]
-
-
 def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--objectives`` and ``--objective-measures``: what the models compare over frames."""
     parser.add_argument(
@@ -149,11 +148,10 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
     parser.add_argument(
         "--objective-measures",
         nargs="+",
-        default=list(DEFAULT_OBJECTIVE_MEASURES),
+        default=None,
         metavar="M",
         help="measures that form the objectives, each on the criteria it is defined on "
-        f"(default: {' '.join(DEFAULT_OBJECTIVE_MEASURES)}; vpe when there is no ground truth; "
-        "add vpe to rank on it beside the GT measures)",
+        f"(default: {DEFAULT_OBJECTIVES_TEXT}; add vpe to rank on it beside the GT measures)",
     )
 
 
@@ -208,9 +206,9 @@ def model_objectives(
     free = [c for c in comparable if is_gt_free(c)]
     parts = []
     if gt:
-        parts.append(objective_matrix(results, objective_measures(measures), gt))
+        parts.append(objective_matrix(results, default_objective_measures(measures), gt))
     if free and (gt_free_too or not gt):
-        parts.append(objective_matrix(results, ["vpe"], free))
+        parts.append(objective_matrix(results, [GT_FREE_OBJECTIVE], free))
     if not parts:
         return None
     return (

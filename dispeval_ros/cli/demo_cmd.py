@@ -17,7 +17,7 @@ from dispeval_ros.cli.output import print_json, table
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
-from dispeval_ros.core.objectives import objective_matrix
+from dispeval_ros.core.objectives import default_objective_measures, objective_matrix
 from dispeval_ros.summary import RunSummary
 
 if TYPE_CHECKING:
@@ -269,7 +269,8 @@ def single_scene(args: argparse.Namespace) -> int:
         results[method.name] = evaluator.score(
             reference, estimate, est_range=(method.min_disparity, float("inf"))
         )
-    methods, names, matrix = objective_matrix(results, ["sze", "bmpre"])
+    objectives = default_objective_measures(evaluator.measures)
+    methods, names, matrix = objective_matrix(results, objectives)
     model = evaluate_models(methods, matrix)
     if args.json:
         print_json(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -11,10 +12,17 @@ import numpy as np
 from dispeval_ros.cli import common, protocol_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
-from dispeval_ros.core import Camera, Evaluator, Scores, evaluate_models
-from dispeval_ros.core.gtfree import GT_FREE_PREFIX, GT_FREE_SCORED, is_gt_free, joined
+from dispeval_ros.core import Camera, Evaluator, ModelResult, Reference, Scores, evaluate_models
+from dispeval_ros.core.gtfree import (
+    GT_FREE_PREFIX,
+    GT_FREE_SCORED,
+    ImagePair,
+    is_gt_free,
+    joined,
+)
 from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.io.scene_frames import GT_SOURCES
 
 if TYPE_CHECKING:
     from dispeval_ros.io.scenes import Scene
@@ -45,7 +53,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="an estimated disparity map; repeat for several methods (name defaults to the file stem)",
     )
     source.add_argument(
-        "--scene", type=Path, help="a dataset scene folder: GT, masks and camera from it"
+        "--scene",
+        type=Path,
+        help="a dataset scene folder: GT, masks and camera from it. In a folder of several "
+        "frames each estimate is scored against the frame it names: a file FRAME.png (or "
+        ".pfm, .npy, ...), or NAME=DIR holding one such file per frame",
+    )
+    source.add_argument(
+        "--frame",
+        help="with --scene: score only this frame (e.g. 000043); any file given is for it",
+    )
+    source.add_argument(
+        "--gt-source",
+        choices=GT_SOURCES,
+        help="with --scene: the official GT map or the projected LiDAR scan of a frame that has "
+        "both (default auto: the official map where the frame has one, else the scan)",
     )
     source.add_argument(
         "--gt-scale", type=float, help="divide GT PNG values by this (16-bit default 256)"
@@ -135,7 +157,7 @@ def _scene_files(scene: Scene) -> list[Path]:
 
 
 def _provenance(
-    args: argparse.Namespace, evaluator: Evaluator, camera: Camera | None, inputs: list[Path]
+    args: argparse.Namespace, evaluator: Evaluator, scored: list[_Scored], inputs: list[Path]
 ) -> dict[str, object]:
     """Version, the options that define the numbers (and their hash), sha256 of every input."""
     from dispeval_ros.core.provenance import provenance_record
@@ -153,82 +175,129 @@ def _provenance(
         "gt_scale": args.gt_scale,
         "est_scale": args.est_scale,
         "estimates": list(args.est),
-        "camera": None
-        if camera is None
-        else {"f": camera.f, "baseline": camera.baseline, "doffs": camera.doffs},
+        "camera": _camera_dict(scored[0].frame.camera),
     }
+    if args.scene is not None:
+        configuration["scene"] = str(args.scene)
+        configuration["gt_source"] = args.gt_source or "auto"
+        configuration["frames"] = [
+            {"frame": s.frame.frame, "gt_source": s.frame.gt_source} for s in scored
+        ]
     return provenance_record(configuration, {"files": files_sha256(inputs)})
 
 
-def run(args: argparse.Namespace) -> int:
-    """Read the inputs, score every estimate, print tables (and models) or JSON."""
-    from dispeval_ros.io import load_scene, read_disparity, read_mask
+@dataclass
+class _Frame:
+    """One ground truth and the estimates scored against it."""
 
-    if args.protocol is not None:
-        return protocol_eval.run(args)
-    if args.roi_labels and args.roi is None:
-        raise ConfigurationError("--roi-labels names the classes of --roi FILE: give --roi too")
-    common.positive_option(args.gt_scale, "--gt-scale")
-    common.positive_option(args.est_scale, "--est-scale")
-    camera: Camera | None = None
-    masks: dict[str, np.ndarray] = {}
-    gt_right = None
-    inputs: list[Path] = []
-    scene = None
-    if args.scene is not None:
-        scene = load_scene(args.scene)
-        inputs += _scene_files(scene)
-        gt, camera, masks, gt_right = scene.gt, scene.camera, dict(scene.masks), scene.gt_right
-        gt_name = str(args.scene)
-        if args.gt is not None:
-            raise ConfigurationError("give either --scene or --gt, not both")
-        if scene.layout == "kitti-lidar":  # LiDAR GT: metric depth ranges, depth measures
-            args.depth_ranges = args.depth_ranges or "0-10,10-30,30-inf"
-            if args.measures is None:
-                args.measures = [*DEFAULT_MEASURES, *DEPTH_MEASURES]
-    elif args.gt is not None:
+    label: str
+    """Where the GT came from, as the text output names it."""
+    gt: np.ndarray | None
+    camera: Camera | None
+    masks: dict[str, np.ndarray]
+    gt_right: np.ndarray | None
+    images: tuple[Path, Path] | None
+    estimates: list[tuple[str, Path]]
+    inputs: list[Path]
+    frame: str | None = None
+    """The scene frame (``None`` for ``--gt`` or images only)."""
+    gt_source: str | None = None
+    """``official`` or ``scan`` for a scene frame."""
+
+
+@dataclass
+class _Scored:
+    """One frame's results: scores per method, the GT and images as prepared, the models."""
+
+    frame: _Frame
+    results: dict[str, Scores]
+    reference: Reference | None
+    pair: ImagePair | None
+    model: tuple[list[str], ModelResult] | None
+    no_model: str
+
+
+def _scene_frames(args: argparse.Namespace, estimates: list[tuple[str, Path]]) -> list[_Frame]:
+    """Every frame of ``--scene`` an estimate is for (or ``--frame``), with its chosen GT."""
+    from dispeval_ros.io import list_frames
+    from dispeval_ros.io.scene_frames import attribute, frame_truth
+
+    scenes = list_frames(args.scene)
+    if scenes[0].layout == "kitti-lidar":  # LiDAR GT: metric depth ranges, depth measures
+        args.depth_ranges = args.depth_ranges or "0-10,10-30,30-inf"
+        if args.measures is None:
+            args.measures = [*DEFAULT_MEASURES, *DEPTH_MEASURES]
+    frames = []
+    for scene, assigned in attribute(args.scene, scenes, estimates, args.frame):
+        truth = frame_truth(args.scene, scene, args.gt_source or "auto")
+        label = (
+            f"{args.scene}, frame {truth.frame}: {truth.describe()}"
+            if len(scenes) > 1
+            else f"{args.scene} ({truth.describe()})"
+        )
+        frames.append(
+            _Frame(
+                label,
+                truth.gt,
+                scene.camera,
+                truth.masks,
+                scene.gt_right if truth.source == "official" else None,
+                _image_files(args, scene),
+                assigned,
+                [*_scene_files(scene), *truth.files],
+                truth.frame,
+                truth.source,
+            )
+        )
+    return frames
+
+
+def _files_frame(args: argparse.Namespace, estimates: list[tuple[str, Path]]) -> _Frame:
+    """The one frame of ``--gt FILE`` (or of the images alone)."""
+    from dispeval_ros.io import read_disparity
+
+    images = _image_files(args, None)
+    if args.gt is not None:
         gt = read_disparity(args.gt, scale=args.gt_scale)
-        gt_name = str(args.gt)
-        inputs.append(args.gt)
-    elif args.left_image is None:
+        return _Frame(str(args.gt), gt, None, {}, None, images, estimates, [args.gt])
+    if args.left_image is None:
         raise ConfigurationError(
             "give the ground truth with --gt FILE or --scene DIR, or the rectified images with "
             "--left-image FILE --right-image FILE for the ground-truth-free measures"
         )
-    else:
-        gt, gt_name = None, ""
-    pair_files = _image_files(args, scene)
-    camera = common.camera_from_args(args) or camera
-    for spec in args.mask:
-        name, path = _named(spec)
-        masks[name] = read_mask(path) == 255
-        inputs.append(path)
-    if args.gt_right is not None:
-        gt_right = read_disparity(args.gt_right, scale=args.gt_scale)
-    roi = read_mask(args.roi) if args.roi is not None else None
-    inputs += [p for p in (args.gt_right, args.roi, args.calib) if p is not None]
+    return _Frame("", None, None, {}, None, images, estimates, [])
 
-    roi_names = _roi_names(args.roi_labels)
-    evaluator = common.evaluator_from_args(args, roi_names)
+
+def _score(
+    args: argparse.Namespace,
+    evaluator: Evaluator,
+    frame: _Frame,
+    roi: np.ndarray | None,
+    roi_names: dict[int, str] | None,
+) -> _Scored:
+    """Score every estimate of one frame against its GT (and images); the models if several."""
+    from dispeval_ros.io import read_disparity
+
     reference = None
-    if gt is not None:
+    if frame.gt is not None:
         try:
-            reference = evaluator.reference(gt, camera, masks=masks, gt_right=gt_right, roi=roi)
+            reference = evaluator.reference(
+                frame.gt, frame.camera, masks=frame.masks, gt_right=frame.gt_right, roi=roi
+            )
         except DispevalError as error:
-            raise type(error)(f"{gt_name}: {error}") from None
+            raise type(error)(f"{frame.label}: {error}") from None
     free, pair = None, None
-    if pair_files is not None:
+    if frame.images is not None:
         from dispeval_ros.io.files import read_stereo_pair
 
         free = common.gt_free_from_args(args, roi_names)
-        pair = free.pair(*read_stereo_pair(*pair_files), roi=roi)
-        inputs += list(pair_files)
+        pair = free.pair(*read_stereo_pair(*frame.images), roi=roi)
+        frame.inputs += list(frame.images)
     right_estimates = dict(_named(spec) for spec in args.est_right)
     if right_estimates and free is None:
         raise ConfigurationError("--est-right needs the images (--left-image/--right-image)")
     results: dict[str, Scores] = {}
-    for spec in args.est:
-        name, path = _named(spec)
+    for name, path in frame.estimates:
         if name in results:
             raise ConfigurationError(
                 f"two estimates are named '{name}'; use NAME=FILE to tell them apart"
@@ -236,7 +305,7 @@ def run(args: argparse.Namespace) -> int:
         current = path
         try:
             estimate = read_disparity(path, scale=args.est_scale)
-            inputs.append(path)
+            frame.inputs.append(path)
             gt_scores = None if reference is None else evaluator.score(reference, estimate)
             free_scores = None
             if free is not None and pair is not None:
@@ -245,7 +314,7 @@ def run(args: argparse.Namespace) -> int:
                 if right_file is not None:
                     current = right_file
                     est_right = read_disparity(right_file, scale=args.est_scale)
-                    inputs.append(right_file)
+                    frame.inputs.append(right_file)
                 free_scores = free.score(pair, estimate, est_right=est_right)
             results[name] = joined(gt_scores, free_scores)
         except DispevalError as error:
@@ -257,9 +326,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigurationError(
             f"--est-right names no --est method: {', '.join(sorted(right_estimates))}"
         )
-
     measures = list(evaluator.measures) if reference is not None else []
-    first = next(iter(results.values()))
     model = None
     no_model = ""
     objectives = (
@@ -275,53 +342,81 @@ def run(args: argparse.Namespace) -> int:
     elif objectives is not None:
         methods, names, matrix = objectives
         model = (names, evaluate_models(methods, matrix))
-    if args.json:
-        document: dict[str, object] = {
-            "frames": [{"method": name, "criteria": s.to_dict()} for name, s in results.items()],
-            "camera": None
-            if camera is None
-            else {"f": camera.f, "baseline": camera.baseline, "doffs": camera.doffs},
-            "sze_relative": camera is None,
-            "missing": evaluator.missing,
-            "overlapping": list(first.overlapping),
-            "partition": {
-                **(reference.partition.counts() if reference is not None else {}),
-                **(
-                    {GT_FREE_PREFIX + c: n for c, n in pair.partition.counts().items()}
-                    if pair is not None
-                    else {}
-                ),
-            },
-            "gt_free": None
-            if pair is None
-            else {
-                "criteria": [c for c in first.criteria if is_gt_free(c)],
-                "measures": list(GT_FREE_SCORED),
-                "in_objectives": bool(args.gt_free_objectives) or reference is None,
-            },
-        }
-        if model is not None:
-            document["objectives"] = model[0]
-            document["models"] = model[1].to_dict()
-        elif no_model:
-            document["models"] = None
-            document["models_note"] = no_model
-        document["provenance"] = _provenance(args, evaluator, camera, inputs)
-        print_json(document)
-        return 0
+    return _Scored(frame, results, reference, pair, model, no_model)
+
+
+def _camera_dict(camera: Camera | None) -> dict[str, float] | None:
+    return (
+        None
+        if camera is None
+        else {"f": camera.f, "baseline": camera.baseline, "doffs": camera.doffs}
+    )
+
+
+def _entries(scored: _Scored) -> list[dict[str, object]]:
+    """The JSON ``frames`` entries of one frame: a method's scores, with the frame and source."""
+    where = {"frame": scored.frame.frame, "gt_source": scored.frame.gt_source}
+    return [
+        {"method": name, "criteria": s.to_dict(), **where} for name, s in scored.results.items()
+    ]
+
+
+def _document(args: argparse.Namespace, evaluator: Evaluator, scored: _Scored) -> dict[str, object]:
+    """One frame's JSON (the shape of a single-frame run, without the provenance)."""
+    frame, reference, pair = scored.frame, scored.reference, scored.pair
+    first = next(iter(scored.results.values()))
+    document: dict[str, object] = {
+        "frames": _entries(scored),
+        "camera": _camera_dict(frame.camera),
+        "sze_relative": frame.camera is None,
+        "missing": evaluator.missing,
+        "overlapping": list(first.overlapping),
+        "partition": {
+            **(reference.partition.counts() if reference is not None else {}),
+            **(
+                {GT_FREE_PREFIX + c: n for c, n in pair.partition.counts().items()}
+                if pair is not None
+                else {}
+            ),
+        },
+        "gt_free": None
+        if pair is None
+        else {
+            "criteria": [c for c in first.criteria if is_gt_free(c)],
+            "measures": list(GT_FREE_SCORED),
+            "in_objectives": bool(args.gt_free_objectives) or reference is None,
+        },
+        "frame": frame.frame,
+        "gt_source": frame.gt_source,
+        "ground_truth": frame.label or None,
+    }
+    if scored.model is not None:
+        document["objectives"] = scored.model[0]
+        document["models"] = scored.model[1].to_dict()
+    elif scored.no_model:
+        document["models"] = None
+        document["models_note"] = scored.no_model
+    return document
+
+
+def _text(evaluator: Evaluator, scored: _Scored) -> str:
+    """One frame's human report: where the GT came from, the camera, tables, models."""
+    frame, reference, pair = scored.frame, scored.reference, scored.pair
+    lines = []
     if reference is not None:
-        print(
-            f"ground truth: {gt_name}  ({reference.shape[1]}×{reference.shape[0]}, "
+        lines.append(
+            f"ground truth: {frame.label}  ({reference.shape[1]}×{reference.shape[0]}, "
             f"{int(np.count_nonzero(reference.partition.cells >= 0))} valid points)"
         )
     else:
-        print("ground truth: none — ground-truth-free measures only")
-    if pair_files is not None and pair is not None:
-        print(
-            f"images: {pair_files[0]}, {pair_files[1]}  ({pair.shape[1]}×{pair.shape[0]}); "
+        lines.append("ground truth: none — ground-truth-free measures only")
+    if frame.images is not None and pair is not None:
+        lines.append(
+            f"images: {frame.images[0]}, {frame.images[1]}  ({pair.shape[1]}×{pair.shape[0]}); "
             "gtfree: criteria are scored without ground truth"
         )
-    print(
+    camera = frame.camera
+    lines.append(
         "camera: "
         + (
             "none — SZE is relative (f·B = 1)"
@@ -329,10 +424,92 @@ def run(args: argparse.Namespace) -> int:
             else f"f = {camera.f:g} px, B = {camera.baseline:g} {camera.unit}, doffs = {camera.doffs:g} px"
         )
     )
-    print(f"missing estimates: {evaluator.missing}\n")
-    print(scores_text(results, first.measures, first.overlapping, first.relative))
-    if model is not None:
-        print("\n" + models_text(model[1], model[0]))
-    elif no_model:
-        print("\n" + no_model)
+    lines.append(f"missing estimates: {evaluator.missing}\n")
+    first = next(iter(scored.results.values()))
+    lines.append(scores_text(scored.results, first.measures, first.overlapping, first.relative))
+    if scored.model is not None:
+        lines.append("\n" + models_text(scored.model[1], scored.model[0]))
+    elif scored.no_model:
+        lines.append("\n" + scored.no_model)
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the inputs, score every estimate of every frame, print tables (and models) or JSON."""
+    from dispeval_ros.io import read_disparity, read_mask
+
+    scene_only = [o for o, v in (("--frame", args.frame), ("--gt-source", args.gt_source)) if v]
+    if args.protocol is not None:
+        if scene_only:
+            raise ConfigurationError(
+                f"{scene_only[0]} chooses a --scene frame's GT for the measures; --protocol "
+                "reads the benchmark's own GT of every frame"
+            )
+        return protocol_eval.run(args)
+    if args.roi_labels and args.roi is None:
+        raise ConfigurationError("--roi-labels names the classes of --roi FILE: give --roi too")
+    common.positive_option(args.gt_scale, "--gt-scale")
+    common.positive_option(args.est_scale, "--est-scale")
+    estimates = [_named(spec) for spec in args.est]
+    if args.scene is not None:
+        if args.gt is not None:
+            raise ConfigurationError("give either --scene or --gt, not both")
+        frames = _scene_frames(args, estimates)
+    elif scene_only:
+        raise ConfigurationError(
+            f"{scene_only[0]} chooses among the frames of a scene folder: give --scene DIR"
+        )
+    else:
+        frames = [_files_frame(args, estimates)]
+    if len(frames) > 1:
+        one_file = [
+            option
+            for option, value in (
+                ("--mask", args.mask),
+                ("--gt-right", args.gt_right),
+                ("--roi", args.roi),
+                ("--left-image", args.left_image),
+                ("--est-right", args.est_right),
+            )
+            if value
+        ]
+        if one_file:
+            raise ConfigurationError(
+                f"{one_file[0]} is for one frame, but {len(frames)} frames are scored "
+                f"({', '.join(str(f.frame) for f in frames)}): choose one with --frame"
+            )
+    camera = common.camera_from_args(args)
+    shared: list[Path] = []
+    masks = {}
+    for spec in args.mask:
+        name, path = _named(spec)
+        masks[name] = read_mask(path) == 255
+        shared.append(path)
+    gt_right = None if args.gt_right is None else read_disparity(args.gt_right, scale=args.gt_scale)
+    roi = read_mask(args.roi) if args.roi is not None else None
+    shared += [p for p in (args.gt_right, args.roi, args.calib) if p is not None]
+    for frame in frames:
+        frame.camera = camera or frame.camera
+        frame.masks.update(masks)
+        frame.gt_right = frame.gt_right if gt_right is None else gt_right
+        frame.inputs += shared
+
+    roi_names = _roi_names(args.roi_labels)
+    evaluator = common.evaluator_from_args(args, roi_names)
+    scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
+    inputs = [path for s in scored for path in s.frame.inputs]
+    if args.json:
+        documents = [_document(args, evaluator, s) for s in scored]
+        if len(documents) == 1:
+            document = documents[0]
+        else:
+            document = {
+                "scene": str(args.scene),
+                "frames": [entry for s in scored for entry in _entries(s)],
+                "per_frame": documents,
+            }
+        document["provenance"] = _provenance(args, evaluator, scored, inputs)
+        print_json(document)
+        return 0
+    print("\n\n".join(_text(evaluator, s) for s in scored))
     return 0

@@ -78,9 +78,12 @@ def _consistency(
 
 
 def read_table(
-    path: Path, measures: list[str], granularity: str
+    path: Path, measures: list[str] | None, granularity: str
 ) -> tuple[list[str], list[str], np.ndarray]:
-    """Methods, objectives and matrix of a scores CSV or of stored results."""
+    """Methods, objectives and matrix of a scores CSV or of stored results.
+
+    ``measures`` None: the default objectives of the measures stored.
+    """
     from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
     from dispeval_ros.io.tables import is_frames_csv, read_objectives_csv
     from dispeval_ros.summary import objective_table
@@ -110,9 +113,7 @@ def run(args: argparse.Namespace) -> int:
     """Read the table, run the models, print."""
     from dispeval_ros.io.tables import write_objectives_csv
 
-    methods, objectives, matrix = read_table(
-        args.scores, list(args.objective_measures), args.objectives
-    )
+    methods, objectives, matrix = read_table(args.scores, args.objective_measures, args.objectives)
     if args.export:
         try:
             write_objectives_csv(args.export, methods, objectives, matrix)

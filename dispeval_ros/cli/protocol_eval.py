@@ -197,13 +197,14 @@ def apply_stream_preset(args: argparse.Namespace) -> dict[str, object]:
     """Set the options a ``--protocol`` preset fixes; the preset's record (empty without one)."""
     if getattr(args, "protocol", None) is None:
         return {}
+    from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.protocols import stream_preset
 
     preset = stream_preset(args.protocol)
     args.criteria = list(preset.criteria)
     args.measures = list(preset.measures)
     args.missing = preset.missing
-    args.objective_measures = [m for m in preset.measures if m != "density"]
+    args.objective_measures = default_objective_measures(preset.measures)
     return {"protocol": args.protocol, "protocol_preset": preset.record()}
 
 

@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
+from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
@@ -138,8 +138,6 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
             "give the ground truth (--gt TOPIC or --gt-cloud TOPIC), or the rectified images "
             "(--left-image TOPIC --right-image TOPIC) for the ground-truth-free measures"
         )
-    if not has_gt and args.objective_measures == list(DEFAULT_OBJECTIVE_MEASURES):
-        args.objective_measures = ["vpe"]  # without GT the models compare vpe
     gt_free_criteria = common.gt_free_criteria(args)
     if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
         args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
@@ -171,6 +169,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * 1e6),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * 1e6),
     )
+    if args.objective_measures is None:  # follow the measures scored (vpe without GT)
+        args.objective_measures = default_objective_measures(config.scored_measures)
     unknown = [m for m in args.objective_measures if m not in config.scored_measures]
     if unknown:  # found now, not after the whole recording was scored
         raise ConfigurationError(

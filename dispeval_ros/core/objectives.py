@@ -6,10 +6,35 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from dispeval_ros.core.measures import HIGHER_IS_BETTER
+from dispeval_ros.core.measures import GT_FREE_MEASURES, HIGHER_IS_BETTER
 from dispeval_ros.errors import ConfigurationError
 
 ScoreTable = Mapping[str, Mapping[str, float]]
+
+#: The objectives the models compare where they are scored (METHOD.md §4).
+DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
+#: The objective of ground-truth-free scores (without GT, or beside it when asked for).
+GT_FREE_OBJECTIVE = "vpe"
+#: :func:`default_objective_measures` in words, for the options' help.
+DEFAULT_OBJECTIVES_TEXT = (
+    "sze and bmpre where scored, else every GT measure scored but density; vpe without GT"
+)
+
+
+def default_objective_measures(scored: Sequence[str]) -> list[str]:
+    """The objectives when none are named, following the measures ``scored``.
+
+    SZE and BMPRE where scored; else every scored ground-truth measure but the
+    higher-is-better ones (density: how much was delivered, not how well); without a
+    ground-truth measure, vpe. So narrowing the measures never leaves an objective unscored.
+    """
+    preferred = [m for m in DEFAULT_OBJECTIVE_MEASURES if m in scored]
+    if preferred:
+        return preferred
+    gt = [m for m in scored if m not in GT_FREE_MEASURES and m not in HIGHER_IS_BETTER]
+    if gt:
+        return gt
+    return [GT_FREE_OBJECTIVE] if GT_FREE_OBJECTIVE in scored else list(scored)
 
 
 def objective_matrix(

@@ -71,6 +71,10 @@ class Scene:
     """LiDAR scenes: the raw scan the GT was projected from."""
     lidar_calib: Path | None = None
     """LiDAR scenes: the calibration (a file or a raw-calibration folder)."""
+    frame: str | None = None
+    """A frame of a multi-frame folder: the file stem its files share (``None``: one frame)."""
+    official_gt: Path | None = None
+    """LiDAR scenes: the dataset's own GT map of the same frame, where published (KITTI 2015)."""
 
 
 # ----------------------------------------------------------------------------------- helpers
@@ -305,6 +309,7 @@ def _sceneflow_frame(folder: Path, frame: str, camera: Camera) -> Scene:
     return Scene(
         name=f"{folder.name}_{frame}",
         layout="sceneflow",
+        frame=frame,
         gt=read_disparity(folder / "Disparity" / f"{frame}.pfm"),
         gt_right=None,
         masks={},
@@ -333,6 +338,7 @@ def _tartanair_frame(folder: Path, frame: str, camera: Camera) -> Scene:
     return Scene(
         name=f"{folder.name}_{frame}",
         layout="tartanair",
+        frame=frame,
         gt=gt,
         gt_right=gt_right,
         masks={},
@@ -352,7 +358,13 @@ def _image_size(file: Path) -> tuple[int, int]:
 
 
 def _lidar_frame(
-    folder: Path, name: str, scan: Path, left: Path, right: Path | None, calib: Path
+    folder: Path,
+    name: str,
+    scan: Path,
+    left: Path,
+    right: Path | None,
+    calib: Path,
+    frame: str | None = None,
 ) -> Scene:
     """A frame whose GT is a LiDAR scan projected into the left image (default filter)."""
     # Imported here: the LiDAR readers need the projection kernel, other layouts do not.
@@ -376,7 +388,18 @@ def _lidar_frame(
         source=folder,
         lidar=scan,
         lidar_calib=calib,
+        frame=frame,
+        official_gt=None if frame is None else _official_lidar_gt(folder, frame),
     )
+
+
+def _official_lidar_gt(folder: Path, frame: str) -> Path | None:
+    """The KITTI 2015 GT map published beside a frame's scan (``gt/disp_occ_0/FRAME.png``)."""
+    for base in (folder / "gt", folder):
+        candidate = base / "disp_occ_0" / f"{frame}.png"
+        if candidate.is_file():
+            return candidate
+    return None
 
 
 def _lidar_calib_location(folder: Path) -> Path | None:
@@ -436,7 +459,8 @@ def _lidar_frames(folder: Path) -> list[Callable[[], Scene]]:
                 f"{scan}: a LiDAR scene needs the left image ({left or folder / 'left.png'}) "
                 "for its size; not found"
             )
-        loaders.append(partial(_lidar_frame, folder, name, scan, left, right, calib))
+        frame = None if single is not None else scan.stem
+        loaders.append(partial(_lidar_frame, folder, name, scan, left, right, calib, frame))
     return loaders
 
 

@@ -43,6 +43,7 @@ from dispeval_ros.core.measures import (
     quantile_level,
 )
 from dispeval_ros.core.models import ModelResult, evaluate_models
+from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
@@ -52,7 +53,6 @@ if TYPE_CHECKING:
 
 FORMAT_VERSION = 1
 GRANULARITIES = ("sequence", "frame")
-DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
 MAX_PROBLEMS = 2000
 """Problems listed in the report (the total is always given)."""
 DEFAULT_THUMBNAILS = 4
@@ -185,11 +185,11 @@ def default_selection(store: ResultsStore, overlapping: Iterable[str] | None = N
     """What the summary compares, as the report opens.
 
     Every sequence, frame and method, the partition criteria (overlapping legacy criteria
-    left out), ``sze`` and ``bmpre`` per sequence (``gtfree:`` criteria left out then; without
-    ground truth the first measure, vpe, on them).
+    left out), the default objectives of the measures stored per sequence (``sze`` and
+    ``bmpre`` where stored; ``gtfree:`` criteria left out then; without ground truth vpe on
+    them).
     """
-    measures = store.measures()
-    chosen = [m for m in DEFAULT_OBJECTIVE_MEASURES if m in measures] or measures[:1]
+    chosen = default_objective_measures(store.measures())
     skip = set(store.overlapping_criteria() if overlapping is None else overlapping)
     return Selection(
         sequences=tuple(store.sequences()),

@@ -24,11 +24,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.stream.core import GT_KINDS, CoreConfig
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.vectors import AlarmThresholds
-from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, GRANULARITIES
+from dispeval_ros.summary import GRANULARITIES
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"
@@ -329,9 +330,12 @@ SUMMARIZER_PARAMETERS: tuple[Param, ...] = (
     Param(
         "objective_measures",
         STRING_ARRAY,
-        DEFAULT_OBJECTIVE_MEASURES,
-        "Measures compared by the Pareto models (A*, A* Groups, front reduction); lower is better",
+        (),
+        "Measures compared by the Pareto models (A*, A* Groups, front reduction). Empty: "
+        + DEFAULT_OBJECTIVES_TEXT
+        + ". Read at start only (an empty array default cannot be read-only in ROS)",
         "measures the evaluator computes",
+        read_only=False,
     ),
     Param(
         "objectives",
@@ -545,8 +549,6 @@ def summarizer_options(values: Mapping[str, Any]) -> SummarizerOptions:
             f"parameter objectives must be one of {', '.join(GRANULARITIES)}, got '{granularity}'"
         )
     measures = tuple(values["objective_measures"])
-    if not measures:
-        raise ConfigurationError("parameter objective_measures is empty: name at least one")
     out = str(values["output_dir"]).strip()
     drain = float(values["drain_timeout"])
     if not (math.isfinite(drain) and drain >= 0):

@@ -21,7 +21,7 @@ from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
-from dispeval_ros.summary import DEFAULT_OBJECTIVE_MEASURES, RunSummary, summarize
+from dispeval_ros.summary import RunSummary, summarize
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,8 @@ class SummarizerConfig:
     """Where results go and how methods are compared."""
 
     out: Path
-    objective_measures: Sequence[str] = DEFAULT_OBJECTIVE_MEASURES
+    objective_measures: Sequence[str] = ()
+    """Empty: the default rule on the measures stored (:func:`default_objective_measures`)."""
     granularity: str = "sequence"
     every_n: int = 10
     resume: bool = False
