@@ -11,7 +11,6 @@ files.
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 from datetime import datetime, timezone
@@ -185,10 +184,47 @@ def drive(shared_data: Path) -> Path:
     return shared_data / DRIVE
 
 
+def _write_pfm(path: Path, values: np.ndarray) -> None:
+    header = f"Pf\n{values.shape[1]} {values.shape[0]}\n-1\n".encode()
+    path.write_bytes(header + np.flipud(values).astype("<f4").tobytes())
+
+
+def _predictions(folder: Path, shape: tuple[int, int]) -> dict[int, np.ndarray]:
+    """A network's output as users have it: frames 0–4 as 16-bit PNG (KITTI raw's 10-digit
+    names), 5–7 as PFM (6 digits, inf = missing), 8–10 as NPY; 0 and inf are missing."""
+    folder.mkdir()
+    rng = np.random.default_rng(21)
+    maps = {}
+    for number in range(FRAMES):
+        raw = rng.integers(1, 150 * 256, size=shape).astype(np.uint16)
+        raw[rng.random(shape) < 0.2] = 0
+        values = raw / 256.0
+        if number < 5:
+            cv2.imwrite(str(folder / f"{number:010d}.png"), raw)
+        elif number < 8:
+            floats = np.where(raw > 0, values, np.inf).astype(np.float32)
+            _write_pfm(folder / f"{number:06d}.pfm", floats)
+        else:
+            np.save(folder / f"{number:06d}.npy", values.astype(np.float32))
+        maps[number] = np.where(raw > 0, values, np.nan)
+    return maps
+
+
 @pytest.fixture(scope="module")
-def raw_bag(drive: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+def predictions(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[int, np.ndarray]]:
+    folder = tmp_path_factory.mktemp("est") / "psm"
+    return folder, _predictions(folder, (375, 1242))
+
+
+@pytest.fixture(scope="module")
+def raw_bag(
+    drive: Path,
+    predictions: tuple[Path, dict[int, np.ndarray]],
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Path:
     bag = tmp_path_factory.mktemp("kitti_raw") / "drive"
-    assert main(["make-bag", str(bag), "--scene", str(drive)]) == 0
+    est = f"psm={predictions[0]}"
+    assert main(["make-bag", str(bag), "--scene", str(drive), "--est", est]) == 0
     return bag
 
 
@@ -257,3 +293,199 @@ def test_bag_scores_equal_an_independent_projection(
             assert any(
                 got["density"] == pytest.approx(v, rel=1e-9) for v in _densities(gt, est, valid)
             )
+
+
+@pytest.mark.slow
+@pytest.mark.data
+def test_streams_keep_their_stamps_and_tf_follows_the_oxts(raw_bag: Path, drive: Path) -> None:
+    for topic, stream in (
+        ("/stereo/left/image_rect", "image_02"),
+        ("/stereo/right/image_rect", "image_03"),
+        (RIGHT_INFO, "image_03"),
+        (CLOUD, "velodyne_points"),
+        (_topic("sgbm"), "image_02"),
+    ):
+        stamps = [
+            m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+            for _, m in _messages(raw_bag, topic)
+        ]
+        assert stamps == _stamps(drive / stream / "timestamps.txt"), topic
+    assert [m.header.frame_id for _, m in _messages(raw_bag, CLOUD)] == ["velodyne"] * FRAMES
+    tf = _messages(raw_bag, "/tf")
+    assert len(tf) == FRAMES
+    poses = _oxts_poses(drive)
+    for (log_time, msg), stamp, pose in zip(
+        tf, _stamps(drive / "oxts" / "timestamps.txt"), poses, strict=True
+    ):
+        (edge,) = msg.transforms
+        assert (edge.header.frame_id, edge.child_frame_id) == ("odom", "base_link")
+        assert edge.header.stamp.sec * 10**9 + edge.header.stamp.nanosec == stamp == log_time
+        matrix = _quaternion_matrix(edge.transform.translation, edge.transform.rotation)
+        np.testing.assert_allclose(matrix[:3, 3], pose[:3, 3], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(matrix[:3, :3], pose[:3, :3], rtol=0, atol=1e-9)
+    # About 7.4 m/s: the last of 11 samples (1.03 s) is 7–8 m ahead of the first.
+    assert 7.0 < float(np.linalg.norm(poses[-1][:3, 3])) < 8.0
+    # No GT image topic: the scans are the reference.
+    with AnyReader([raw_bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert "/stereo/ground_truth/disparity" not in topics
+    assert {"/tf_static", CLOUD, LEFT_INFO, RIGHT_INFO} <= topics
+
+
+@pytest.mark.slow
+@pytest.mark.data
+def test_est_round_trip(
+    raw_bag: Path, drive: Path, predictions: tuple[Path, dict[int, np.ndarray]]
+) -> None:
+    _, f, baseline = _geometry(drive)
+    messages = _messages(raw_bag, _topic("psm"))
+    left = _messages(raw_bag, "/stereo/left/image_rect")
+    assert len(messages) == FRAMES
+    for number, ((_, msg), (_, image)) in enumerate(zip(messages, left, strict=True)):
+        assert msg.header.stamp == image.header.stamp
+        values, valid = _disparity(msg)
+        expected = predictions[1][number]
+        np.testing.assert_array_equal(valid, np.isfinite(expected))
+        np.testing.assert_array_equal(values[valid], expected[valid].astype(np.float32))
+        assert (msg.f, msg.t) == pytest.approx((f, baseline), rel=1e-6)  # float32 fields
+
+
+# -- bad drives: one line, exit 2, nothing written --------------------------------------------
+
+
+def _copy_drive(drive: Path, root: Path) -> Path:
+    """The shared drive as symlinks below ``root/2011_09_26`` (files can then be replaced)."""
+    day = root / drive.parent.name
+    copy = day / drive.name
+    for calib in drive.parent.glob("calib_*.txt"):
+        day.mkdir(parents=True, exist_ok=True)
+        (day / calib.name).symlink_to(calib)
+    for stream in drive.iterdir():
+        (copy / stream.name / "data").mkdir(parents=True)
+        for entry in stream.iterdir():
+            if entry.is_file():
+                (copy / stream.name / entry.name).symlink_to(entry)
+        for entry in (stream / "data").iterdir():
+            (copy / stream.name / "data" / entry.name).symlink_to(entry)
+    return copy
+
+
+def _no_stream(copy: Path) -> None:
+    shutil.rmtree(copy / "velodyne_points")
+
+
+def _scan_without_stamp(copy: Path) -> None:
+    (copy / "velodyne_points" / "data" / "0000000010.bin").unlink()
+
+
+def _stream_short(copy: Path) -> None:
+    """velodyne_points one frame short, consistently (its timestamps cut too)."""
+    _scan_without_stamp(copy)
+    file = copy / "velodyne_points" / "timestamps.txt"
+    lines = file.read_text().splitlines()[:-1]
+    file.unlink()
+    file.write_text("\n".join(lines) + "\n")
+
+
+def _bad_stamp(copy: Path) -> None:
+    file = copy / "image_03" / "timestamps.txt"
+    lines = file.read_text().splitlines()
+    file.unlink()
+    lines[2] = "2011-09-26 14:14:11,118196992"
+    file.write_text("\n".join(lines) + "\n")
+
+
+def _no_p_rect_03(copy: Path) -> None:
+    file = copy.parent / "calib_cam_to_cam.txt"
+    lines = [line for line in file.read_text().splitlines() if not line.startswith("P_rect_03")]
+    file.unlink()
+    file.write_text("\n".join(lines) + "\n")
+
+
+def _second_drive(copy: Path) -> Path:
+    (copy.parent / "2011_09_26_drive_0001_sync" / "image_02" / "data").mkdir(parents=True)
+    return copy.parent
+
+
+@pytest.mark.data
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (_no_stream, "no velodyne_points/data/ folder: a KITTI raw drive needs"),
+        (_scan_without_stamp, "timestamps.txt: 11 timestamps for the 10 files of velodyne"),
+        (
+            _stream_short,
+            "velodyne_points has 10 frames, image_02 11: frame(s) 0000000010 of image_02 "
+            "missing in velodyne_points",
+        ),
+        (_bad_stamp, "image_03/timestamps.txt: line 3 is not a timestamp"),
+        (_no_p_rect_03, "calib_cam_to_cam.txt: missing field 'P_rect_03'"),
+        (
+            _second_drive,
+            "a day folder with 2 drives (2011_09_26_drive_0001_sync, 2011_09_26_drive_0048_sync)",
+        ),
+    ],
+)
+def test_bad_drives_are_refused(
+    damage: Any, message: str, drive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    copy = _copy_drive(drive, tmp_path / "in")
+    scene = damage(copy) or copy
+    out = tmp_path / "bag"
+    assert main(["make-bag", str(out), "--scene", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert message in err, err
+    assert not out.exists()
+
+
+@pytest.mark.data
+@pytest.mark.parametrize(
+    ("size", "skip", "message"),
+    [
+        ((375, 1242), 0, "no map for frame 0 (expected a file named by the frame's number"),
+        ((370, 1242), None, "--est psm map is 1242×370, the images are 1242×375"),
+    ],
+)
+def test_bad_est_folders_are_refused(
+    size: tuple[int, int],
+    skip: int | None,
+    message: str,
+    drive: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    folder = tmp_path / "psm"
+    _predictions(folder, size)
+    for file in folder.iterdir():
+        if int(file.stem) == skip:
+            file.unlink()
+    out = tmp_path / "bag"
+    args = ["make-bag", str(out), "--scene", str(drive), "--est", f"psm={folder}"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert message in err, err
+    assert not out.exists()
+
+
+@pytest.mark.data
+def test_kitti_lidar_scene_says_its_gt_is_the_projected_scan(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "est"
+    folder.mkdir()
+    estimate = np.full((375, 1242), 20 * 256, dtype=np.uint16)
+    cv2.imwrite(str(folder / "000000.png"), estimate)  # a single-frame scene is frame 0
+    bag = tmp_path / "bag"
+    scene = shared_data / "kitti-lidar" / "stereo-rcnn-demo"
+    assert main(["make-bag", str(bag), "--scene", str(scene), "--est", f"flat={folder}"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "ground truth: /stereo/ground_truth/disparity = the LiDAR scan projected into the left "
+        "camera (parallax filter 7,0.1), not a measured dense map" in out
+    )
+    ((_, msg),) = _messages(bag, _topic("flat"))
+    values, valid = _disparity(msg)
+    assert valid.all()
+    assert (values == 20.0).all()
