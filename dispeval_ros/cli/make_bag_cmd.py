@@ -8,11 +8,14 @@ import math
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError, InputError
+
+if TYPE_CHECKING:
+    from dispeval_ros.offline.make_bag import Estimates
 
 HELP = "write a bag with stereo images, CameraInfo, exact GT and OpenCV methods' DisparityImages"
 STORAGES = ("rosbag2-mcap", "rosbag2-sqlite3", "mcap")
@@ -163,17 +166,18 @@ def _ground_truth(summary: dict[str, object]) -> str:
     return f"{summary['gt']}" + (f" = {source}" if source else "")
 
 
-def _estimates(specs: list[str]) -> list[Any]:
+def _estimates(specs: list[str]) -> list[Estimates]:
     """``--est NAME=DIR`` options, indexed and checked before any frame is read."""
     from dispeval_ros.offline.make_bag import estimates_from
     from dispeval_ros.testbed import default_methods
 
     reserved = {method.name for method in default_methods(640)}
-    estimates = []
+    estimates: list[Estimates] = []
     for spec in specs:
         name, sep, folder = spec.partition("=")
         if not (sep and name and folder):
             raise ConfigurationError(f"--est must be NAME=DIR, got {spec!r}")
+        if any(name == known.name for known in estimates):
+            raise ConfigurationError(f"--est {name} is given twice")
         estimates.append(estimates_from(name, Path(folder), reserved))
-        reserved.add(name)
     return estimates
