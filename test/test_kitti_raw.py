@@ -489,3 +489,21 @@ def test_kitti_lidar_scene_says_its_gt_is_the_projected_scan(
     values, valid = _disparity(msg)
     assert valid.all()
     assert (values == 20.0).all()
+
+
+@pytest.mark.data
+def test_a_drive_is_a_scene_of_kitti_lidar_frames(drive: Path) -> None:
+    from dispeval_ros.io.scenes import list_frames
+
+    frames = list_frames(drive)
+    assert [f.name for f in frames] == [f"{drive.name}_{n:010d}" for n in range(FRAMES)]
+    calib, f, baseline = _geometry(drive)
+    scans = sorted((drive / "velodyne_points" / "data").glob("*.bin"))
+    for frame, scan in zip(frames, scans, strict=True):
+        assert frame.layout == "kitti-lidar"
+        projected = _projected(scan, calib, f * baseline, frame.gt.shape)
+        kept = frame.gt > 0
+        # The scene's GT is the projection with the parallax filter (7,0.1): it only removes.
+        assert not (kept & ~(projected > 0)).any()
+        np.testing.assert_allclose(frame.gt[kept], projected[kept], rtol=1e-6)
+        assert 0.02 < 1 - kept.sum() / (projected > 0).sum() < 0.10

@@ -101,6 +101,8 @@ class RawDrive:
     """The frames' file stems (``0000000000`` …), the same in every stream."""
     streams: dict[str, RawStream]
     calibration: LidarCalibration
+    calib_folder: Path
+    """Where the day's ``calib_*.txt`` are (the day folder, or the drive's own)."""
     imu_to_velo: np.ndarray
     """IMU (oxts unit) → Velodyne, 4×4: maps IMU-frame points into the LiDAR frame."""
 
@@ -220,7 +222,8 @@ def open_drive(path: Path) -> RawDrive:
     calib = _calib_folder(folder)
     calibration = read_lidar_calib(calib)
     _ = calibration.camera  # f > 0 and B > 0, checked now rather than at the first frame
-    return RawDrive(folder, frames, streams, calibration, read_imu_to_velo(calib / RAW_IMU_TO_VELO))
+    imu_to_velo = read_imu_to_velo(calib / RAW_IMU_TO_VELO)
+    return RawDrive(folder, frames, streams, calibration, calib, imu_to_velo)
 
 
 def read_oxts(file: Path) -> np.ndarray:
