@@ -323,6 +323,15 @@ def test_streams_keep_their_stamps_and_tf_follows_the_oxts(raw_bag: Path, drive:
         matrix = _quaternion_matrix(edge.transform.translation, edge.transform.rotation)
         np.testing.assert_allclose(matrix[:3, 3], pose[:3, 3], rtol=0, atol=1e-6)
         np.testing.assert_allclose(matrix[:3, :3], pose[:3, :3], rtol=0, atol=1e-9)
+    # base_link is the oxts unit: base_link → velodyne is calib_imu_to_velo inverted.
+    imu = _calib(drive.parent / "calib_imu_to_velo.txt")
+    imu_to_velo = np.eye(4)
+    imu_to_velo[:3, :3], imu_to_velo[:3, 3] = imu["R"].reshape(3, 3), imu["T"]
+    ((_, tf_static),) = _messages(raw_bag, "/tf_static")
+    (mount,) = [t for t in tf_static.transforms if t.child_frame_id == "velodyne"]
+    assert mount.header.frame_id == "base_link"
+    carried = _quaternion_matrix(mount.transform.translation, mount.transform.rotation)
+    np.testing.assert_allclose(carried, np.linalg.inv(imu_to_velo), atol=1e-5)
     # About 7.4 m/s: the last of 11 samples (1.03 s) is 7–8 m ahead of the first.
     assert 7.0 < float(np.linalg.norm(poses[-1][:3, 3])) < 8.0
     # No GT image topic: the scans are the reference.
@@ -507,3 +516,15 @@ def test_a_drive_is_a_scene_of_kitti_lidar_frames(drive: Path) -> None:
         assert not (kept & ~(projected > 0)).any()
         np.testing.assert_allclose(frame.gt[kept], projected[kept], rtol=1e-6)
         assert 0.02 < 1 - kept.sum() / (projected > 0).sum() < 0.10
+
+
+@pytest.mark.data
+def test_a_day_folder_with_one_drive_is_that_drive(drive: Path) -> None:
+    from dispeval_ros.offline.make_bag import dataset_frames
+
+    first = next(dataset_frames(drive.parent))
+    assert first.gt is None
+    assert first.number == 0
+    assert first.stamps is not None
+    assert first.stamps.left == _stamps(drive / "image_02" / "timestamps.txt")[0]
+    assert first.stamps.cloud == _stamps(drive / "velodyne_points" / "timestamps.txt")[0]

@@ -4,7 +4,9 @@ Every method's output is published as a ``stereo_msgs/DisparityImage`` exactly a
 stereo_image_proc does (32FC1, ``f``, ``t``, ``min/max_disparity``, ``delta_d = 1/16``,
 invalid pixels = ``min_disparity − 1``, the images' header), logged a little after the images
 as a real pipeline would (each method has its own processing latency), so the bag exercises
-the stamp join the same way a recording of a robot does.
+the stamp join the same way a recording of a robot does. A KITTI raw drive
+(:func:`kitti_raw_frames`) keeps its recorded stamps, stream by stream, and has no GT map;
+``--est`` maps (:class:`Estimates`) are published beside the methods.
 """
 
 from __future__ import annotations
