@@ -127,6 +127,13 @@ EST_SUFFIXES = (".png", ".pfm", ".npy")
 _EST_FILE = re.compile(r"^(\d+)\.(png|pfm|npy)$", re.IGNORECASE)
 
 
+LIDAR_GT_SOURCE = (
+    f"the LiDAR scan projected into the left camera (parallax filter {CloudFilter()}), "
+    "not a measured dense map"
+)
+"""What the GT of a ``kitti-lidar`` scene is (``load_scene`` projects its scan)."""
+
+
 def _grey_pair(folder: Path, left: Path, right: Path) -> tuple[np.ndarray, np.ndarray]:
     """Both images of a frame as 8-bit grey: what the OpenCV methods match and the bag holds."""
     left_image = cv2.imread(str(left), cv2.IMREAD_GRAYSCALE)
@@ -186,13 +193,6 @@ def dataset_frames(folder: Path) -> Iterator[BagFrame]:
             number=_frame_number(folder, scene.name, index),
             gt_source=gt_source,
         )
-
-
-LIDAR_GT_SOURCE = (
-    f"the LiDAR scan projected into the left camera (parallax filter {CloudFilter()}), "
-    "not a measured dense map"
-)
-"""What the GT of a ``kitti-lidar`` scene is (``load_scene`` projects its scan)."""
 
 
 def kitti_raw_frames(folder: Path) -> Iterator[BagFrame]:
