@@ -870,6 +870,7 @@ LAYOUTS = {
     "tartanair-oldtown": "tartanair",
     "kitti-lidar/stereo-rcnn-demo": "kitti-lidar",
     "kitti-lidar/kitti2015-with-velodyne": "kitti-lidar",
+    "kitti-raw-drive-0048/2011_09_26/2011_09_26_drive_0048_sync": "kitti-lidar",
     **{f"middeval3-training-Q/{scene}": "middeval3" for scene in MIDDEVAL3_SCENES},
 }
 

@@ -8,11 +8,14 @@ import math
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError, InputError
+
+if TYPE_CHECKING:
+    from dispeval_ros.offline.make_bag import Estimates
 
 HELP = "write a bag with stereo images, CameraInfo, exact GT and OpenCV methods' DisparityImages"
 STORAGES = ("rosbag2-mcap", "rosbag2-sqlite3", "mcap")
@@ -37,7 +40,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "or a plain MCAP file (default rosbag2-mcap)",
     )
     parser.add_argument(
-        "--scene", type=Path, help="dataset scene folder instead of the synthetic drive"
+        "--scene",
+        type=Path,
+        help="dataset scene folder instead of the synthetic drive: any layout 'eval --scene' "
+        "reads, or a KITTI raw drive DATE/DRIVE_sync (or a DATE folder holding one drive)",
+    )
+    parser.add_argument(
+        "--est",
+        action="append",
+        default=[],
+        metavar="NAME=DIR",
+        help="add external predictions as DisparityImages on /stereo/NAME/disparity: DIR holds "
+        "one map per frame named by the frame's number (0000000003.png or 000003.png = frame "
+        "3; 16-bit PNG value/256, PFM, NPY); repeatable",
     )
     parser.add_argument("--frames", type=int, default=30, help="synthetic frames (default 30)")
     parser.add_argument("--fps", type=float, default=10.0, help="synthetic frame rate (default 10)")
@@ -92,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.output.exists():
         raise InputError(f"{args.output} exists; remove it or choose another path")
+    estimates = _estimates(args.est)
     if args.scene is not None:
         frames: Iterator[Any] = dataset_frames(args.scene)
         total = None
@@ -112,6 +128,7 @@ def run(args: argparse.Namespace) -> int:
             fps=args.fps,
             compress=args.compress,
             progress=(lambda n: progress.update(n, total, n)) if total else None,
+            estimates=estimates,
         )
     except BaseException:  # a later frame failed, or Ctrl-C: no half-written bag
         _remove(args.output)
@@ -122,10 +139,45 @@ def run(args: argparse.Namespace) -> int:
         methods = summary["methods"]
         assert isinstance(methods, dict)
         print(f"wrote {summary['frames']} frames to {args.output} ({args.storage})")
-        print(
-            f"ground truth: {summary['gt']}; methods: "
-            + ", ".join(f"{k}={v}" for k, v in methods.items())
-        )
+        print(f"ground truth: {_ground_truth(summary)}")
+        print("methods: " + ", ".join(f"{k}={v}" for k, v in methods.items()))
         if "gt_cloud" in summary:
-            print(f"LiDAR: {summary['gt_cloud']} with {summary['tf_static']}")
+            motion = (
+                f"; ego-motion on {summary['tf']} (odom → base_link)" if "tf" in summary else ""
+            )
+            print(f"LiDAR: {summary['gt_cloud']} with {summary['tf_static']}{motion}")
+            offset = summary["cloud_offset_ms"]
+            assert isinstance(offset, float)
+            if offset > 0:
+                print(
+                    f"the scans are stamped up to {offset:.2f} ms from the left images: give "
+                    f"dispeval bag --tolerance {math.ceil(offset)} (ms) or more"
+                )
     return 0
+
+
+def _ground_truth(summary: dict[str, object]) -> str:
+    """The GT line: its topic and what it is, or how to score a bag that has none."""
+    if summary["gt"] is None:
+        cloud = summary.get("gt_cloud")
+        reference = f": its scans are the reference (dispeval bag --gt-cloud {cloud})"
+        return "no GT map" + (reference if cloud else "")
+    source = summary.get("gt_source")
+    return f"{summary['gt']}" + (f" = {source}" if source else "")
+
+
+def _estimates(specs: list[str]) -> list[Estimates]:
+    """``--est NAME=DIR`` options, indexed and checked before any frame is read."""
+    from dispeval_ros.offline.make_bag import estimates_from
+    from dispeval_ros.testbed import default_methods
+
+    reserved = {method.name for method in default_methods(640)}
+    estimates: list[Estimates] = []
+    for spec in specs:
+        name, sep, folder = spec.partition("=")
+        if not (sep and name and folder):
+            raise ConfigurationError(f"--est must be NAME=DIR, got {spec!r}")
+        if any(name == known.name for known in estimates):
+            raise ConfigurationError(f"--est {name} is given twice")
+        estimates.append(estimates_from(name, Path(folder), reserved))
+    return estimates

@@ -464,6 +464,27 @@ def _lidar_frames(folder: Path) -> list[Callable[[], Scene]]:
     return loaders
 
 
+def _kitti_raw_frames(folder: Path) -> list[Callable[[], Scene]]:
+    """Frames of a KITTI raw drive, as ``kitti-lidar`` frames; none when it is not a drive.
+
+    The GT of each frame is its scan projected, as for ``velodyne_points/*.bin`` folders.
+    """
+    from dispeval_ros.io.kitti_raw import is_drive, open_drive
+
+    if not is_drive(folder):
+        return []
+    drive = open_drive(folder)
+    left, right, scans = (
+        drive.streams[s].files for s in ("image_02", "image_03", "velodyne_points")
+    )
+    return [
+        partial(
+            _lidar_frame, folder, f"{folder.name}_{stem}", scan, image, other, drive.calib_folder
+        )
+        for stem, scan, image, other in zip(drive.frames, scans, left, right, strict=True)
+    ]
+
+
 # ---------------------------------------------------------------------------------- public
 
 
@@ -481,7 +502,7 @@ _LOOKED_FOR = (
     "disp0GT.pfm (middeval3), disp0.pfm (eth3d), groundtruth.png + info.txt "
     "(middlebury2001), *_left_disp.npy (tartanair), gt_disparity.png|disp_gt.png|"
     "disp_occ*.png (kitti), lidar.bin or velodyne_points/*.bin + KITTI calibration "
-    "(kitti-lidar)"
+    "(kitti-lidar), image_02/data + velodyne_points/data (a KITTI raw drive)"
 )
 
 
@@ -511,7 +532,7 @@ def _frames(folder: Path) -> list[Callable[[], Scene]]:
     gt_file = _kitti_gt(folder)
     if gt_file is not None:
         return [partial(_load_kitti, folder, gt_file)]
-    lidar = _lidar_frames(folder)
+    lidar = _lidar_frames(folder) or _kitti_raw_frames(folder)
     if lidar:
         return lidar
     raise LayoutError(
