@@ -479,7 +479,14 @@ def _kitti_raw_frames(folder: Path) -> list[Callable[[], Scene]]:
     )
     return [
         partial(
-            _lidar_frame, folder, f"{folder.name}_{stem}", scan, image, other, drive.calib_folder
+            _lidar_frame,
+            folder,
+            f"{folder.name}_{stem}",
+            scan,
+            image,
+            other,
+            drive.calib_folder,
+            frame=stem,
         )
         for stem, scan, image, other in zip(drive.frames, scans, left, right, strict=True)
     ]
