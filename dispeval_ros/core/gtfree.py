@@ -499,8 +499,10 @@ class GroundTruthFree:
         if buffer is None or buffer.shape != shape:
             buffer = np.empty(shape, dtype=np.float32)
             setattr(self._local, slot, buffer)
+        # Valid means > 0 here, whatever the range: the warp needs a positive disparity.
         lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
-        k.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
+        lo = max(float(lo), k.POSITIVE) if math.isfinite(lo) else k.POSITIVE
+        k.normalise_estimate(estimate, lo, float(hi), 0.0, 0.0, POLICIES[self.missing], buffer)
         return buffer
 
 

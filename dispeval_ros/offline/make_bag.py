@@ -2,9 +2,11 @@
 
 Every method's output is published as a ``stereo_msgs/DisparityImage`` exactly as ROS 2
 stereo_image_proc does (32FC1, ``f``, ``t``, ``min/max_disparity``, ``delta_d = 1/16``,
-invalid pixels = ``min_disparity − 1``, the images' header), logged a little after the images
-as a real pipeline would (each method has its own processing latency), so the bag exercises
-the stamp join the same way a recording of a robot does.
+invalid pixels = ``min_disparity − 1``, values and range offset-corrected by the camera's
+``doffs`` as the message defines, the images' header); the ground truth is an Image of the
+dataset's own ``x_l − x_r`` (the CameraInfo pair carries ``doffs``). Methods are logged a
+little after the images as a real pipeline would (each method has its own processing latency),
+so the bag exercises the stamp join the same way a recording of a robot does.
 """
 
 from __future__ import annotations
@@ -216,6 +218,7 @@ def write_bag(
                     camera.baseline if camera else 0.0,
                     method.min_disparity,
                     method.max_disparity,
+                    doffs=camera.doffs if camera else 0.0,
                 )
                 latency = 20_000_000 + 15_000_000 * index  # a pipeline's processing time
                 bag.write(disparity_topic(method.name), stamp + latency, message)

@@ -339,6 +339,8 @@ class EvaluationCore:
         self._cloud_filter = CloudFilter.parse(config.cloud_filter)
         self.failed = dict.fromkeys(config.methods, 0)
         self._failed_lock = threading.Lock()
+        self._negative_t: set[str] = set()
+        """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
     # -- input ------------------------------------------------------------------------------
 
@@ -426,11 +428,10 @@ class EvaluationCore:
             first = frames[next(iter(estimates))]
             if isinstance(first, DispevalError):
                 raise first
-            if isinstance(calibration, DispevalError):
-                raise calibration
-            camera = calibration if self.config.left_info_topic else first.camera
-            if camera is None:  # scoring it would mix relative SZE into metric totals
-                raise CalibrationError(self._no_camera(first))
+            topic = self._topic(next(iter(estimates)))
+            camera, no_camera = self._frame_camera(first, topic, calibration, result)
+            if camera is None and (self.config.pointcloud or self.config.gt_kind == "depth"):
+                raise CalibrationError(no_camera)  # the ground truth itself needs the camera
             if self.config.pointcloud:
                 gt = self.cloud_disparity(
                     frame_set.gt, camera, first.disparity.shape, infos
@@ -446,6 +447,10 @@ class EvaluationCore:
                 self._count_failed(method)
             result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
+        if camera is None:  # pixel measures need no camera; the depth ones say why they are nan
+            result.problems.append(
+                (None, f"frame at {frame_set.stamp}: depth measures not scored: {no_camera}")
+            )
 
         def score_method(method: str) -> FrameResult:
             return self._score_method(method, frames[method], reference, frame_set, pair)
@@ -478,14 +483,17 @@ class EvaluationCore:
         try:
             if isinstance(frame, DispevalError):
                 raise frame
-            gt_scores = self.evaluator.score(reference, frame.disparity, est_range=frame.est_range)
+            terms = frame.scoring(reference.camera)
+            gt_scores = self.evaluator.score(reference, frame.disparity, **terms)
+            if reference.camera is None:
+                gt_scores = gt_scores.without_camera()
             part.scores[method] = joined(
                 gt_scores, self._gt_free_scores(method, frame, frame_set, pair, part)
             )
             part.estimate_stamps[method] = stamp
             if self.error_images:
                 part.errors[method] = self.evaluator.error_map(
-                    reference, frame.disparity, frame.est_range
+                    reference, frame.disparity, **terms
                 )
                 part.partition = reference.partition
         except DispevalError as error:
@@ -493,14 +501,44 @@ class EvaluationCore:
             part.problems.append((method, f"{self._topic(method)} at {stamp}: {error}"))
         return part
 
+    def _frame_camera(
+        self,
+        first: DisparityFrame,
+        topic: str,
+        calibration: Camera | DispevalError | None,
+        result: FrameResult,
+    ) -> tuple[Camera | None, str]:
+        """The frame's camera, or None and why (then only the depth measures are lost).
+
+        From the CameraInfo pair when configured, else from the first DisparityImage's f and
+        ``|t|``; a negative ``t`` is said once per topic, as a problem row.
+        """
+        if self.config.left_info_topic:
+            if isinstance(calibration, DispevalError):
+                return None, str(calibration)
+            return calibration, self._no_camera(first)
+        with self._failed_lock:  # frames may be scored in several threads
+            warn = first.negative_t and topic not in self._negative_t
+            if warn:
+                self._negative_t.add(topic)
+        if warn:
+            result.problems.append(
+                (
+                    None,
+                    f"{topic}: its DisparityImage has t = {first.t:g} < 0; its magnitude "
+                    f"{abs(first.t):g} is used as the baseline (said once for this topic)",
+                )
+            )
+        return first.camera, self._no_camera(first)
+
     def _no_camera(self, first: DisparityFrame) -> str:
         """Why a frame has no camera (f, B), and what gives it one."""
         left, right = self.config.left_info_topic, self.config.right_info_topic
         if left and right:
             return f"no CameraInfo pair received yet on {left} and {right}"
         return (
-            f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected finite "
-            "and > 0); give the CameraInfo topics to take the camera from them"
+            f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected "
+            "finite, f > 0 and t ≠ 0); give the CameraInfo topics to take the camera from them"
         )
 
     # -- ground-truth-free measures ---------------------------------------------------------
