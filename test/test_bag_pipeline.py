@@ -468,6 +468,26 @@ def test_a_disparity_image_without_a_camera_keeps_its_pixel_measures(
         assert not store.sequence_scores(sequence)["m"].relative
 
 
+def test_a_negative_t_is_its_magnitude_said_once_per_topic(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """t < 0 (no CameraInfo topics): every frame scored as with |t|; one warning line."""
+    results = {}
+    for sign in (-1.0, 1.0):
+        bag, out = tmp_path / f"bag{sign:+}", tmp_path / f"out{sign:+}"
+        write_custom_bag(bag, disparity_cameras=((100.0, sign),) * 3)
+        code, _, err = run_custom(bag, out, capsys, camera_info=False, extra=("--slice", "0.1"))
+        assert code == 0
+        said = [line for line in err.splitlines() if "t = -1 < 0" in line]
+        assert len(said) == (1 if sign < 0 else 0), err
+        with ResultsStore.open(out) as store:
+            sequence = store.sequences()[0]
+            counts = store.match_counts(sequence)["m"]
+            assert (counts.matched, counts.failed) == (3, 0)
+            results[sign] = store.sequence_scores(sequence)["m"].sums
+    np.testing.assert_array_equal(results[-1.0], results[1.0])
+
+
 def test_a_frame_recorded_twice_is_scored_once_and_resumes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -517,18 +517,13 @@ class EvaluationCore:
             if isinstance(calibration, DispevalError):
                 return None, str(calibration)
             return calibration, self._no_camera(first)
+        warning = negative_t_warning(first, topic)
         with self._failed_lock:  # frames may be scored in several threads
-            warn = first.negative_t and topic not in self._negative_t
+            warn = warning is not None and topic not in self._negative_t
             if warn:
                 self._negative_t.add(topic)
         if warn:
-            result.problems.append(
-                (
-                    None,
-                    f"{topic}: its DisparityImage has t = {first.t:g} < 0; its magnitude "
-                    f"{abs(first.t):g} is used as the baseline (said once for this topic)",
-                )
-            )
+            result.problems.append((None, f"{warning} (said once for this topic)"))
         return first.camera, self._no_camera(first)
 
     def _no_camera(self, first: DisparityFrame) -> str:
@@ -732,6 +727,16 @@ class EvaluationCore:
             for method, join in self.joiner.counts.items()
             if method in self.failed
         }
+
+
+def negative_t_warning(frame: DisparityFrame, topic: str) -> str | None:
+    """What to say once about a DisparityImage whose ``t`` is negative (None: nothing)."""
+    if not frame.negative_t:
+        return None
+    return (
+        f"{topic}: its DisparityImage has t = {frame.t:g} < 0; its magnitude {abs(frame.t):g} "
+        "is used as the baseline"
+    )
 
 
 def _payload(frame_set: FrameSet[Any, Any], key: str) -> Any:
