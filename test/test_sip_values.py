@@ -22,7 +22,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from dispeval_ros import Camera
+from dispeval_ros import Camera, Evaluator
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import DEFAULT_MEASURES
 from dispeval_ros.io import read_disparity, write_pfm
@@ -225,6 +225,24 @@ def test_negative_min_disparity_keeps_negative_valid_values() -> None:
     assert problems == []
     for got, (gt, values) in zip(scores, frames, strict=True):
         _assert_close(got, _numpy(gt, values, low, high, CAMERA.fb, 0.0))
+
+
+@pytest.mark.parametrize(
+    ("policy", "scored"),
+    [
+        ("interpolate", [3, -2, -2, 0, 0, 0, 4]),  # a gap takes the smaller (farther) neighbour
+        ("thesis", [3, 0, -2, 0, 0, 0, 4]),  # a missing estimate is E = 0
+        ("ignore", [3, None, -2, 0, None, None, 4]),  # left out
+    ],
+)
+def test_every_policy_keeps_valid_zeros_and_negative_values(policy: str, scored: list) -> None:
+    """Range [−8, 40]: −9 is missing, −2 and 0 are valid values (GT 5 everywhere)."""
+    estimate = np.array([[3.0, -9.0, -2.0, 0.0, -9.0, -9.0, 4.0]], np.float32)
+    gt = np.full(estimate.shape, 5.0, np.float32)
+    scores = Evaluator(criteria=("all",), missing=policy).score(gt, estimate, est_range=(-8, 40))
+    errors = [abs(value - 5.0) for value in scored if value is not None]
+    assert scores["all"]["density"] == 4 / 7
+    assert scores["all"]["mae"] == pytest.approx(sum(errors) / len(errors), rel=1e-12)
 
 
 def test_negative_t_is_its_magnitude_said_once() -> None:
