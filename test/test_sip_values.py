@@ -22,7 +22,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from dispeval_ros import Camera, Evaluator
+from dispeval_ros import Camera, Evaluator, GroundTruthFree
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import DEFAULT_MEASURES
 from dispeval_ros.io import read_disparity, write_pfm
@@ -278,6 +278,25 @@ def test_offset_corrected_values_with_cx_r_not_cx_l_are_offset_once() -> None:
         z_gt = camera.fb / (gt[valid].astype(np.float64) + camera.doffs)  # f·B/(D + doffs)
         z_est = camera.fb / values[valid].astype(np.float64)  # the message's Z = f·T/d
         assert got["mae_z"] == pytest.approx(np.abs(z_gt - z_est).mean(), rel=1e-9)
+
+
+@pytest.mark.parametrize("policy", ["ignore", "thesis"])
+def test_gt_free_measures_warp_with_the_offset_corrected_values_once(policy: str) -> None:
+    """vpe and lrc of ``x_l − x_r + doffs`` with ``est_offset = doffs`` = those of ``x_l − x_r``."""
+    rng = np.random.default_rng(5)
+    left = rng.integers(0, 256, (16, 48), dtype=np.uint8)
+    right = rng.integers(0, 256, (16, 48), dtype=np.uint8)
+    estimate = np.round(rng.uniform(-1.0, 12.0, left.shape) * 16).astype(np.float32) / 16
+    free = GroundTruthFree(("all",), policy)
+    pair = free.pair(left, right)
+    views = {"est_range": (0.0, 11.0), "right_range": (0.0, 11.0)}
+    raw = free.score(pair, estimate, est_right=estimate, **views)
+    doffs = np.float32(4.0)
+    views = {"est_range": (4.0, 15.0), "right_range": (4.0, 15.0), "est_offset": 4.0}
+    shifted = free.score(pair, estimate + doffs, est_right=estimate + doffs, **views)
+    np.testing.assert_array_equal(shifted.sums, raw.sums)
+    unshifted = free.score(pair, estimate + doffs, est_range=(4.0, 15.0))
+    assert unshifted["gtfree:all"]["vpe"] != raw["gtfree:all"]["vpe"]  # the offset matters
 
 
 def test_pixel_measures_need_no_camera() -> None:

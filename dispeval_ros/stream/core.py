@@ -417,7 +417,8 @@ class EvaluationCore:
                 for method in estimates:
                     self._count_failed(method)
                 return result
-            return self._score_gt_free_only(frame_set, estimates, pair, result)
+            camera = calibration if isinstance(calibration, Camera) else None
+            return self._score_gt_free_only(frame_set, estimates, pair, camera, result)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -488,7 +489,8 @@ class EvaluationCore:
             if reference.camera is None:
                 gt_scores = gt_scores.without_camera()
             part.scores[method] = joined(
-                gt_scores, self._gt_free_scores(method, frame, frame_set, pair, part)
+                gt_scores,
+                self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
             if self.error_images:
@@ -586,6 +588,7 @@ class EvaluationCore:
         frame: DisparityFrame,
         frame_set: FrameSet[Any, Any],
         pair: ImagePair | None,
+        camera: Camera | None,
         result: FrameResult,
     ) -> Scores | None:
         """Beside GT scores: one method's GT-free scores, or empty rows and a problem.
@@ -597,7 +600,7 @@ class EvaluationCore:
         if pair is None:
             return self.gt_free.empty()
         try:
-            return self._score_images(method, frame, frame_set, pair, result)
+            return self._score_images(method, frame, frame_set, pair, camera, result)
         except DispevalError as error:
             result.problems.append(
                 (
@@ -614,6 +617,7 @@ class EvaluationCore:
         frame: DisparityFrame,
         frame_set: FrameSet[Any, Any],
         pair: ImagePair,
+        camera: Camera | None,
         result: FrameResult,
     ) -> Scores:
         """Vpe (and lrc with the method's right view) of one estimate on the frame's images."""
@@ -636,7 +640,7 @@ class EvaluationCore:
         return self.gt_free.score(
             pair,
             frame.disparity,
-            est_range=frame.est_range,
+            **frame.scoring(camera),
             est_right=None if right_view is None else right_view.disparity,
             right_range=None if right_view is None else right_view.est_range,
         )
@@ -646,6 +650,7 @@ class EvaluationCore:
         frame_set: FrameSet[Any, Any],
         estimates: dict[str, tuple[int, Any]],
         pair: ImagePair,
+        camera: Camera | None,
         result: FrameResult,
     ) -> FrameResult:
         """No ground truth: each method's GT-free scores alone (a bad estimate: failed)."""
@@ -653,7 +658,9 @@ class EvaluationCore:
             topic = self._topic(method)
             try:
                 frame = disparity_from_msg(msg, topic)
-                result.scores[method] = self._score_images(method, frame, frame_set, pair, result)
+                result.scores[method] = self._score_images(
+                    method, frame, frame_set, pair, camera, result
+                )
                 result.estimate_stamps[method] = stamp
             except DispevalError as error:
                 self._count_failed(method)
