@@ -260,7 +260,7 @@ def test_negative_t_is_its_magnitude_said_once() -> None:
 
 
 def test_offset_corrected_values_with_cx_r_not_cx_l_are_offset_once() -> None:
-    """``cx_r − cx_l = 4``: the message's ``d = x_l − x_r + 4``; the range is on those values."""
+    """``cx_r − cx_l = 4``: the message's ``d = x_l − x_r + 4``, its range on those values."""
     camera = Camera(f=100.0, baseline=0.5, doffs=4.0)
     low, high = 6.0, 40.0  # in the message's (offset-corrected) values
     frames = []
@@ -282,7 +282,7 @@ def test_offset_corrected_values_with_cx_r_not_cx_l_are_offset_once() -> None:
 
 @pytest.mark.parametrize("policy", ["ignore", "thesis"])
 def test_gt_free_measures_warp_with_the_offset_corrected_values_once(policy: str) -> None:
-    """vpe and lrc of ``x_l − x_r + doffs`` with ``est_offset = doffs`` = those of ``x_l − x_r``."""
+    """vpe, lrc of ``x_l − x_r + doffs`` with ``est_offset = doffs``: those of ``x_l − x_r``."""
     rng = np.random.default_rng(5)
     left = rng.integers(0, 256, (16, 48), dtype=np.uint8)
     right = rng.integers(0, 256, (16, 48), dtype=np.uint8)

@@ -384,9 +384,7 @@ class Evaluator:
         values = self._buffer("values", partition.order.shape, np.float32)
         coded = self.missing == "interpolate"
         source = self.normalise(estimate, est_range, est_offset) if coded else estimate
-        kernels.gather_estimate(
-            source.ravel(), partition.order, lo, hi, base, shift, coded, values
-        )
+        kernels.gather_estimate(source.ravel(), partition.order, lo, hi, base, shift, coded, values)
         cell_sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         kernels.accumulate_cells(
             values,

@@ -74,7 +74,11 @@ def _float32_bounds(lo: float, hi: float) -> tuple[np.float32, np.float32]:  # p
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def _code_row(
-    row: np.ndarray, lo: np.float32, hi: np.float32, base: np.float32, hole: np.float32,
+    row: np.ndarray,
+    lo: np.float32,
+    hi: np.float32,
+    base: np.float32,
+    hole: np.float32,
     out: np.ndarray,
 ) -> int:  # pragma: no cover
     """Copy one row with validity in the sign; the number of valid values.
@@ -139,7 +143,7 @@ POSITIVE = 5e-324
 
 
 def coding(lo: float, offset: float = 0.0) -> tuple[float, float]:
-    """``(base, shift)`` of an estimate whose valid values are ``≥ lo``, scored as ``value − offset``.
+    """``(base, shift)`` of an estimate valid from ``lo`` up, scored as ``value − offset``.
 
     The coded value of a valid estimate is ``value − base`` (float32), so it is > 0 even for
     a valid 0 or negative value (a DisparityImage's ``[min_disparity, max_disparity]``); the
@@ -379,9 +383,7 @@ def accumulate_cells(
         for t in range(MAX_THRESHOLDS):
             row[FIELD_BAD + t] += terms[8 + t]
         if depth_terms:  # as costly as all the others (two more divisions per point)
-            depth = _depth_sums(
-                cell_values, cell_gt, fb, depth_offset, mu, missing_weight, shift
-            )
+            depth = _depth_sums(cell_values, cell_gt, fb, depth_offset, mu, missing_weight, shift)
             row[FIELD_SUM_EZ] += depth[0]
             row[FIELD_SUM_EZ2] += depth[1]
             row[FIELD_SUM_RELZ] += depth[2]

@@ -239,7 +239,7 @@ class DisparityFrame:
         return math.isfinite(self.t) and self.t < 0
 
     def scoring(self, camera: Camera | None) -> dict[str, Any]:
-        """``est_range`` and ``est_offset`` for ``Evaluator.score``: the message as the core reads it.
+        """``est_range`` and ``est_offset`` for ``Evaluator.score``: the message as read.
 
         The one place where the message's values become the core's disparity ``x_l − x_r``. The
         core's convention is the datasets': ground truth ``x_l − x_r`` and depth

@@ -494,9 +494,7 @@ class EvaluationCore:
             )
             part.estimate_stamps[method] = stamp
             if self.error_images:
-                part.errors[method] = self.evaluator.error_map(
-                    reference, frame.disparity, **terms
-                )
+                part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition
         except DispevalError as error:
             self._count_failed(method)
