@@ -140,7 +140,11 @@ def test_bag_gives_exactly_the_scores_of_eval(
             write_pfm(tmp_path / "gt.pfm", gts[stamp])
             from_bag = store.frame_scores(sequence, stamp)
             for method in METHODS:
-                write_pfm(tmp_path / "est.pfm", estimates[method, stamp])
+                # A DisparityImage's 0 inside [min, max] is valid, a file's 0 missing: written
+                # as the smallest normal float32, it scores the same (|tiny − D| = D in float64).
+                estimate = estimates[method, stamp]
+                tiny = np.finfo(np.float32).tiny
+                write_pfm(tmp_path / "est.pfm", np.where(estimate == 0, tiny, estimate))
                 code = main(
                     [
                         "eval",
@@ -373,16 +377,16 @@ def test_missing_topic_lists_what_exists(
 
 
 @pytest.mark.parametrize(
-    ("defect", "expected"),
+    ("defect", "expected", "scored"),
     [
-        ({"method_width": 60}, "60"),
-        ({"gt_encoding": "rgb8"}, "rgb8"),
-        ({"baseline": 0.0}, "baseline"),
+        ({"method_width": 60}, "60", 0),
+        ({"gt_encoding": "rgb8"}, "rgb8", 0),
+        ({"baseline": 0.0}, "baseline", 3),  # pixel measures need no camera
     ],
     ids=["size-mismatch", "unknown-encoding", "zero-baseline"],
 )
 def test_per_frame_problems_are_recorded_not_fatal(
-    defect: dict, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    defect: dict, expected: str, scored: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     write_custom_bag(tmp_path / "bag", **defect)
     code, out, _ = run_custom(tmp_path / "bag", tmp_path / "out", capsys)
@@ -393,7 +397,7 @@ def test_per_frame_problems_are_recorded_not_fatal(
         assert len(problems) == 3
         assert all(expected in p.message and "\n" not in p.message for p in problems)
         counts = store.match_counts(store.sequences()[0])["m"]
-        assert (counts.matched, counts.failed) == (0, 3)
+        assert (counts.matched, counts.failed) == (scored, 3 - scored)
 
 
 def test_good_custom_bag_scores(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -437,10 +441,10 @@ def test_truncated_bag_is_a_clear_error_and_keeps_results(
             assert store.stamps(store.sequences()[0])
 
 
-def test_a_disparity_image_without_a_camera_fails_its_frame_not_the_run(
+def test_a_disparity_image_without_a_camera_keeps_its_pixel_measures(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """t = 0 or NaN f (no CameraInfo topics): one failed frame each, the others metric."""
+    """t = 0 or NaN f (no CameraInfo topics): pixel measures scored, depth ones nan and said."""
     cameras = ((100.0, 1.0), (100.0, 0.0), (float("nan"), 1.0))
     write_custom_bag(tmp_path / "bag", disparity_cameras=cameras)
     code, out, _ = run_custom(tmp_path / "bag", tmp_path / "out", capsys, camera_info=False)
@@ -449,12 +453,39 @@ def test_a_disparity_image_without_a_camera_fails_its_frame_not_the_run(
     with ResultsStore.open(tmp_path / "out") as store:
         sequence = store.sequences()[0]
         counts = store.match_counts(sequence)["m"]
-        assert (counts.matched, counts.failed) == (1, 2)
+        assert (counts.matched, counts.failed) == (3, 0)
         messages = [p.message for p in store.problems()]
         assert len(messages) == 2
+        assert all("depth measures not scored" in m for m in messages), messages
         assert any("f = 100, t = 0" in m for m in messages), messages
         assert any("f = nan, t = 1" in m for m in messages), messages
+        stamps = store.stamps(sequence)
+        metric, *without = (store.frame_scores(sequence, s)["m"]["all"] for s in stamps)
+        assert np.isfinite(metric["sze"])
+        for scores in without:
+            assert np.isnan(scores["sze"])
+            assert scores["mae"] == metric["mae"]
         assert not store.sequence_scores(sequence)["m"].relative
+
+
+def test_a_negative_t_is_its_magnitude_said_once_per_topic(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """t < 0 (no CameraInfo topics): every frame scored as with |t|; one warning line."""
+    results = {}
+    for sign in (-1.0, 1.0):
+        bag, out = tmp_path / f"bag{sign:+}", tmp_path / f"out{sign:+}"
+        write_custom_bag(bag, disparity_cameras=((100.0, sign),) * 3)
+        code, _, err = run_custom(bag, out, capsys, camera_info=False, extra=("--slice", "0.1"))
+        assert code == 0
+        said = [line for line in err.splitlines() if "t = -1 < 0" in line]
+        assert len(said) == (1 if sign < 0 else 0), err
+        with ResultsStore.open(out) as store:
+            sequence = store.sequences()[0]
+            counts = store.match_counts(sequence)["m"]
+            assert (counts.matched, counts.failed) == (3, 0)
+            results[sign] = store.sequence_scores(sequence)["m"].sums
+    np.testing.assert_array_equal(results[-1.0], results[1.0])
 
 
 def test_a_frame_recorded_twice_is_scored_once_and_resumes(

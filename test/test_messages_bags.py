@@ -166,10 +166,16 @@ def test_est_range(low, high, expected) -> None:
     assert frame.est_range == expected
 
 
-@pytest.mark.parametrize(("f", "t"), [(0.0, 0.5), (700.0, 0.0), (700.0, -0.5), (math.nan, 1.0)])
+@pytest.mark.parametrize(("f", "t"), [(0.0, 0.5), (700.0, 0.0), (math.nan, 1.0)])
 def test_disparity_camera_absent_without_f_and_t(f, t) -> None:
     frame = DisparityFrame(0, "", np.zeros((1, 1), np.float32), f, t, 0.0, 1.0, 1.0)
     assert frame.camera is None
+
+
+def test_disparity_camera_of_a_negative_t_is_its_magnitude() -> None:
+    frame = DisparityFrame(0, "", np.zeros((1, 1), np.float32), 700.0, -0.5, 0.0, 1.0, 1.0)
+    assert frame.camera == Camera(700.0, 0.5)
+    assert frame.negative_t
 
 
 def test_disparity_wrong_encoding_names_topic_and_encoding() -> None:

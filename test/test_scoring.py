@@ -339,7 +339,8 @@ def test_est_range_selects_exactly_the_float32_values_within_float64_bounds(
     """The kernels compare float32 estimates with float32 bounds: the same values must pass.
 
     The estimates are each bound's float32 neighbours (and 0, inf, nan); density counts
-    those with ``0 < v``, ``lo <= v <= hi`` (compared in float64) and ``v`` finite.
+    those with ``lo <= v <= hi`` (compared in float64; 0 and negative values included, as a
+    DisparityImage's range defines) and ``v`` finite, and ``0 < v`` when ``lo`` is −inf.
     """
     lo, hi = bounds
     candidates = [0.0, 1e-45, 1.0, INF, NAN, np.finfo(np.float32).max]
@@ -350,7 +351,9 @@ def test_est_range_selects_exactly_the_float32_values_within_float64_bounds(
     est = np.array([candidates], np.float32)
     values = est.astype(np.float64)[0]
     with np.errstate(invalid="ignore"):
-        expected = (values > 0) & (values >= lo) & (values <= hi) & np.isfinite(values)
+        expected = (values >= lo) & (values <= hi) & np.isfinite(values)
+        if lo == -INF:
+            expected &= values > 0
     gt = np.ones_like(est)
     got = Evaluator(criteria=("all",), missing=policy).score(gt, est, est_range=(lo, hi))
     assert got["all"]["density"] == np.count_nonzero(expected) / est.size

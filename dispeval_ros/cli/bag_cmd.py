@@ -15,7 +15,9 @@ from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 
 if TYPE_CHECKING:
-    pass
+    from collections.abc import Iterable
+
+    from dispeval_ros.io.bags import BagSource
 
 HELP = "evaluate the stereo methods recorded in bags, frame by frame, into a results database"
 
@@ -94,6 +96,32 @@ def check_before_writing(args: argparse.Namespace, config: Any) -> None:
                 "t, which carry no doffs (SZE and depth measures are wrong if doffs ≠ 0)",
                 file=sys.stderr,
             )
+        if not config.left_info_topic:
+            for warning in _negative_t(source, config.methods.values()):
+                print(f"dispeval bag: warning: {bag}: {warning}", file=sys.stderr)
+
+
+def _negative_t(source: BagSource, topics: Iterable[str]) -> list[str]:
+    """The negative-t warning of each topic whose first DisparityImage has ``t < 0``.
+
+    Said once per topic and bag before the run, as the doffs warning; the camera comes from the
+    DisparityImages only without ``--camera-info``.
+    """
+    from dispeval_ros.errors import DispevalError
+    from dispeval_ros.io.messages import disparity_from_msg
+    from dispeval_ros.stream.core import negative_t_warning
+
+    warnings = []
+    for topic in topics:
+        try:
+            first = next(iter(source.messages([topic])), None)
+            frame = None if first is None else disparity_from_msg(first[2], topic)
+        except DispevalError:  # the run records what is wrong with it, frame by frame
+            continue
+        warning = None if frame is None else negative_t_warning(frame, topic)
+        if warning is not None:
+            warnings.append(warning)
+    return warnings
 
 
 def camera_text(config: Any) -> str:

@@ -252,7 +252,7 @@ class Evaluator:
             partition = crit.build_partition(valid, [built[name] for name in self.criteria])
             gt_sorted = np.empty(partition.order.shape, dtype=np.float32)  # a plain gather
             kernels.gather_estimate(
-                gt.ravel(), partition.order, -math.inf, math.inf, False, gt_sorted
+                gt.ravel(), partition.order, kernels.POSITIVE, math.inf, 0.0, 0.0, False, gt_sorted
             )
         fb = camera.fb if camera else 1.0
         doffs = camera.doffs if camera else 0.0
@@ -356,12 +356,16 @@ class Evaluator:
         gt_right: np.ndarray | None = None,
         roi: np.ndarray | None = None,
         est_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
     ) -> Scores:
         """Score one estimated map: criterion → measure → value (``"n"``: point count).
 
         ``gt`` is a GT map (its partition is cached while it stays the same) or a
-        :class:`Reference`. ``est_range`` is a DisparityImage's ``(min, max)`` disparity;
-        estimates outside it are missing.
+        :class:`Reference`. Valid estimates are finite and > 0 (files), or with ``est_range``
+        (a DisparityImage's ``[min_disparity, max_disparity]``) inside it, 0 and negative
+        values included. ``est_offset``: the estimate's values are ``E + est_offset`` (a
+        DisparityImage's values are offset-corrected by ``doffs``); validity is tested on the
+        values as given, the measures score ``E``.
         """
         if isinstance(gt, Reference):
             reference = gt
@@ -376,13 +380,11 @@ class Evaluator:
                 f"{crit.size_text(reference.shape)}"
             )
         partition = reference.partition
-        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        lo, hi, base, shift = estimate_coding(est_range, est_offset)
         values = self._buffer("values", partition.order.shape, np.float32)
         coded = self.missing == "interpolate"
-        source = self.normalise(estimate, est_range) if coded else estimate
-        kernels.gather_estimate(
-            source.ravel(), partition.order, float(lo), float(hi), coded, values
-        )
+        source = self.normalise(estimate, est_range, est_offset) if coded else estimate
+        kernels.gather_estimate(source.ravel(), partition.order, lo, hi, base, shift, coded, values)
         cell_sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         kernels.accumulate_cells(
             values,
@@ -394,10 +396,11 @@ class Evaluator:
             self.thresholds,
             0.0 if self.missing == "ignore" else 1.0,
             self._depth_terms,
+            shift,
             cell_sums,
         )
         sums = partition.membership.astype(np.float64) @ cell_sums
-        quantiles = self._quantile_values(reference, values) if self._quantiles else {}
+        quantiles = self._quantile_values(reference, values, shift) if self._quantiles else {}
         return Scores(
             criteria=partition.criteria,
             measures=self.measures,
@@ -410,29 +413,38 @@ class Evaluator:
         )
 
     def normalise(
-        self, estimate: np.ndarray, est_range: tuple[float, float] | None = None
+        self,
+        estimate: np.ndarray,
+        est_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
     ) -> np.ndarray:
         """The estimate with validity in the sign bit and the missing policy applied.
 
         Positive: a valid estimate; otherwise missing, scored as the negated value (KITTI
-        background interpolation under ``interpolate``, 0 otherwise). The returned buffer
-        is reused by the next call in the same thread.
+        background interpolation under ``interpolate``, 0 otherwise); the value is
+        ``|coded| + shift`` of :func:`estimate_coding`. The returned buffer is reused by the
+        next call in the same thread.
         """
         estimate = as_disparity(estimate, "the estimate")
-        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+        lo, hi, base, shift = estimate_coding(est_range, est_offset)
         buffer = self._buffer("work", estimate.shape, np.float32)
-        kernels.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
+        kernels.normalise_estimate(estimate, lo, hi, base, shift, POLICIES[self.missing], buffer)
         return buffer
 
     def error_map(
-        self, reference: Reference, est: np.ndarray, est_range: tuple[float, float] | None = None
+        self,
+        reference: Reference,
+        est: np.ndarray,
+        est_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
     ) -> np.ndarray:
         """Absolute error per pixel as scored (after the missing policy); NaN where not evaluated.
 
         For display (error images), not for scoring: it allocates a full-size image.
         """
-        work = self.normalise(as_disparity(est, "the estimate"), est_range)
-        error = np.abs(np.abs(work) - reference.gt)
+        work = self.normalise(as_disparity(est, "the estimate"), est_range, est_offset)
+        shift = estimate_coding(est_range, est_offset)[3]
+        error = np.abs(np.abs(work) + np.float32(shift) - reference.gt)
         error[reference.partition.cells < 0] = np.nan
         if self.missing == "ignore":
             error[work <= 0] = np.nan
@@ -447,7 +459,7 @@ class Evaluator:
         return buffer
 
     def _quantile_values(
-        self, reference: Reference, values: np.ndarray
+        self, reference: Reference, values: np.ndarray, shift: float = 0.0
     ) -> dict[str, dict[str, float]]:
         """ETH3D-style error quantiles: the value at index ⌊N·q/100⌋ of the sorted errors.
 
@@ -456,7 +468,7 @@ class Evaluator:
         """
         partition = reference.partition
         raw = values.astype(np.float64)
-        errors = np.abs(np.abs(raw) - reference.gt_sorted)
+        errors = np.abs(np.abs(raw) + shift - reference.gt_sorted)
         offsets = partition.offsets
         cells = []
         for cell in range(offsets.shape[0] - 1):
@@ -484,6 +496,21 @@ class Evaluator:
 
 #: Candidate values per sorted part in :func:`kth_smallest`'s first step.
 KTH_PROBES = 256
+
+
+def estimate_coding(
+    est_range: tuple[float, float] | None, offset: float = 0.0
+) -> tuple[float, float, float, float]:
+    """``(lo, hi, base, shift)`` the kernels code and score an estimate with.
+
+    No range, or a lower end of −inf: valid means > 0 (files' rule); else valid means
+    inside the range (a NaN bound: nothing). ``base``, ``shift``:
+    :func:`~dispeval_ros.core.kernels.coding`.
+    """
+    lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
+    lo = kernels.POSITIVE if lo == -math.inf else float(lo)
+    base, shift = kernels.coding(lo, float(offset))
+    return lo, float(hi), base, shift
 
 
 def kth_smallest(parts: Sequence[np.ndarray], ks: Sequence[int]) -> dict[int, float]:

@@ -27,7 +27,7 @@ from numba import njit
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core import kernels as k
-from dispeval_ros.core.evaluator import POLICIES, _same, as_disparity
+from dispeval_ros.core.evaluator import POLICIES, _same, as_disparity, estimate_coding
 from dispeval_ros.core.measures import (
     FIELDS,
     GT_FREE_MEASURES,
@@ -129,14 +129,17 @@ def photometric_sums(
     lrc_threshold: float,
     cells: np.ndarray,
     sums: np.ndarray,
+    shift: float = 0.0,
+    right_shift: float = 0.0,
 ) -> None:  # pragma: no cover - compiled
     """Add one estimate's GT-free terms per cell (``cells`` < 0: not evaluated).
 
     ``coded`` is the estimate from :func:`~dispeval_ros.core.kernels.normalise_estimate`
-    (validity in the sign, ``|coded|`` the value to score); ``include_missing`` is False under
+    (validity in the sign, ``|coded| + shift`` the disparity ``x_l − x_r`` to warp with, see
+    :func:`~dispeval_ros.core.kernels.coding`); ``include_missing`` is False under
     ``ignore``. ``right_pairs`` comes from :func:`neighbour_pairs`, ``runs`` from
-    :func:`cell_runs`. ``right_coded`` is the right-view estimate coded the same way, or 0×0
-    for none. ``tolerance`` ≥ 0.
+    :func:`cell_runs`. ``right_coded`` is the right-view estimate coded the same way (its
+    ``right_shift``), or 0×0 for none. ``tolerance`` ≥ 0.
 
     Per row (occlusion is along the row only): a vectorised pass of every pixel's geometry;
     one right-to-left pass that reads and writes the z-buffer at once (:func:`_row_visible`);
@@ -164,7 +167,7 @@ def photometric_sums(
         row = coded[y]
         for x in range(width):  # geometry: vectorises
             raw = row[x]
-            d = np.float64(abs(raw))
+            d = np.float64(abs(raw)) + shift
             source = x - d
             clamped = min(max(source, 0.0), last)
             x0 = min(int(clamped), width - 2)  # x0 + 1 inside: at x − d = W − 1 the weight is 1
@@ -175,7 +178,7 @@ def photometric_sums(
             counted = (raw > floor) & (source >= 0.0) & (source <= last)
             target[x] = int(clamped + 0.5) if counted else hidden  # clamped ≥ 0: floor
             slot[x] = int(landing) if lands else width + (x & (SPARE_SLOTS - 1))
-        _row_visible(row, target, slot, tolerance, zbuffer, visible)
+        _row_visible(row, shift, target, slot, tolerance, zbuffer, visible)
         _gather(right_pairs[y], column, neighbours)
         left_row = left[y]
         for x in range(width):  # interpolation and difference: vectorises
@@ -205,7 +208,9 @@ def photometric_sums(
             sums[cell, k.FIELD_N_VPE] += n_vpe
             sums[cell, k.FIELD_SUM_VPE] += sum_vpe
             if check:
-                n_lrc, n_bad = _run_lrc(row, right_coded[y], floor, start, stop, lrc_threshold)
+                n_lrc, n_bad = _run_lrc(
+                    row, right_coded[y], floor, start, stop, lrc_threshold, shift, right_shift
+                )
                 sums[cell, k.FIELD_N_LRC] += n_lrc
                 sums[cell, k.FIELD_LRC] += n_bad
 
@@ -239,6 +244,7 @@ def _add_masked(
 @njit(cache=True, nogil=True, fastmath=k._FAST, error_model="numpy")
 def _row_visible(
     coded: np.ndarray,
+    shift: float,
     target: np.ndarray,
     slot: np.ndarray,
     tolerance: float,
@@ -257,7 +263,7 @@ def _row_visible(
     zbuffer[-1] = np.inf  # what pixels that do not count read (``target``): never visible
     for i in range(width):
         x = np.uint64(width - 1 - i)
-        d = abs(coded[x])
+        d = np.float32(abs(coded[x]) + shift)
         seen = not np.float64(zbuffer[target[x]]) > np.float64(d) + tolerance
         here = slot[x]
         zbuffer[here] = max(zbuffer[here], d)
@@ -279,6 +285,8 @@ def _run_lrc(
     start: int,
     stop: int,
     lrc_threshold: float,
+    shift: float,
+    right_shift: float,
 ) -> tuple[float, float]:  # pragma: no cover - compiled
     """Pixels left-right checked and the inconsistent ones among them over ``[start, stop)``."""
     last = np.float64(coded.shape[0] - 1)
@@ -286,13 +294,14 @@ def _run_lrc(
     n_bad = 0.0
     for x in range(start, stop):
         raw = coded[x]
-        d = np.float64(abs(raw))
+        d = np.float64(abs(raw)) + shift
         source = x - d
         target = int(min(max(source, 0.0), last) + 0.5)
         other = right_coded[target]
         checked = (raw > floor) & (source >= 0.0) & (source <= last) & (other > floor)
         n_lrc += 1.0 if checked else 0.0
-        n_bad += 1.0 if checked & (abs(d - abs(other)) > lrc_threshold) else 0.0
+        other_d = np.float64(abs(other)) + right_shift
+        n_bad += 1.0 if checked & (abs(d - other_d) > lrc_threshold) else 0.0
     return n_lrc, n_bad
 
 
@@ -423,13 +432,19 @@ class GroundTruthFree:
         est_range: tuple[float, float] | None = None,
         est_right: np.ndarray | None = None,
         right_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
     ) -> Scores:
-        """Score one estimate on ``gtfree:`` criteria (``lrc`` only with ``est_right``)."""
-        coded = self._coded("left", est, est_range, pair.shape, "the estimate")
-        right_coded = (
-            np.zeros((0, 0), np.float32)
+        """Score one estimate on ``gtfree:`` criteria (``lrc`` only with ``est_right``).
+
+        Validity and ``est_offset`` (both views') as :meth:`Evaluator.score` reads them.
+        """
+        coded, shift = self._coded("left", est, est_range, est_offset, pair.shape, "the estimate")
+        right_coded, right_shift = (
+            (np.zeros((0, 0), np.float32), 0.0)
             if est_right is None
-            else self._coded("right", est_right, right_range, pair.shape, "the right-view estimate")
+            else self._coded(
+                "right", est_right, right_range, est_offset, pair.shape, "the right-view estimate"
+            )
         )
         partition = pair.partition
         sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
@@ -444,6 +459,8 @@ class GroundTruthFree:
             self.lrc_threshold,
             partition.cells,
             sums,
+            shift,
+            right_shift,
         )
         return Scores(
             criteria=tuple(GT_FREE_PREFIX + name for name in partition.criteria),
@@ -485,10 +502,14 @@ class GroundTruthFree:
         slot: str,
         est: np.ndarray,
         est_range: tuple[float, float] | None,
+        est_offset: float,
         shape: tuple[int, int],
         what: str,
-    ) -> np.ndarray:
-        """The estimate coded by the missing policy (validity in the sign), in a thread buffer."""
+    ) -> tuple[np.ndarray, float]:
+        """The estimate coded by the missing policy, in a thread buffer, and its shift.
+
+        Validity is in the sign; ``|coded| + shift`` is the disparity ``x_l − x_r``.
+        """
         estimate = as_disparity(est, what)
         if estimate.shape != shape:
             raise ShapeMismatchError(
@@ -499,9 +520,9 @@ class GroundTruthFree:
         if buffer is None or buffer.shape != shape:
             buffer = np.empty(shape, dtype=np.float32)
             setattr(self._local, slot, buffer)
-        lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
-        k.normalise_estimate(estimate, float(lo), float(hi), POLICIES[self.missing], buffer)
-        return buffer
+        lo, hi, base, shift = estimate_coding(est_range, est_offset)
+        k.normalise_estimate(estimate, lo, hi, base, shift, POLICIES[self.missing], buffer)
+        return buffer, shift
 
 
 def joined(gt: Scores | None, free: Scores | None) -> Scores:

@@ -9,6 +9,8 @@ per ground-truth map by the partition.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -72,18 +74,24 @@ def _float32_bounds(lo: float, hi: float) -> tuple[np.float32, np.float32]:  # p
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def _code_row(
-    row: np.ndarray, lo: np.float32, hi: np.float32, out: np.ndarray
+    row: np.ndarray,
+    lo: np.float32,
+    hi: np.float32,
+    base: np.float32,
+    hole: np.float32,
+    out: np.ndarray,
 ) -> int:  # pragma: no cover
-    """Copy one row with validity in the sign (missing → -0.0); the number of valid values.
+    """Copy one row with validity in the sign; the number of valid values.
 
-    ``lo`` and ``hi`` come from :func:`_float32_bounds` (so ``hi`` also excludes infinity).
+    Valid (``lo ≤ value ≤ hi``) → ``value − base`` (> 0, as ``base < lo``); missing →
+    ``hole`` (≤ 0). ``lo`` and ``hi`` come from :func:`_float32_bounds` (so ``hi`` also
+    excludes infinity).
     """
     count = 0
-    zero = np.float32(0.0)
     for x in range(row.shape[0]):
         value = row[x]
-        valid = (value > zero) & (value >= lo) & (value <= hi)
-        out[x] = value if valid else np.float32(-0.0)
+        valid = (value >= lo) & (value <= hi)
+        out[x] = value - base if valid else hole
         count += np.int32(valid)
     return count
 
@@ -129,22 +137,58 @@ def _fill_row_gaps(out: np.ndarray) -> None:  # pragma: no cover - compiled
             k += one
 
 
+#: The lower bound that makes "valid" mean "> 0" (files, GT, unset ranges): the smallest
+#: positive double, which :func:`_float32_bounds` raises to the smallest positive float32.
+POSITIVE = 5e-324
+
+
+def coding(lo: float, offset: float = 0.0) -> tuple[float, float]:
+    """``(base, shift)`` of an estimate valid from ``lo`` up, scored as ``value − offset``.
+
+    The coded value of a valid estimate is ``value − base`` (float32), so it is > 0 even for
+    a valid 0 or negative value (a DisparityImage's ``[min_disparity, max_disparity]``); the
+    kernels score ``|coded| + shift`` with ``shift = base − offset``, and a missing estimate
+    coded as ``shift`` scores as 0. ``base`` is 0 (the coded value is the value itself, bit
+    for bit) whenever every valid value is > 0 and ``offset`` ≥ 0; else the smallest normal
+    float32 below 0 (valid zeros: exact) or a power of two below ``2·lo`` and ``2·offset``
+    (exact for values on a 1/16 px grid, float32-rounded otherwise).
+    """
+    floor = max(min(lo if math.isfinite(lo) else 0.0, offset), -(2.0**126))  # float32 range
+    tiny = float(np.finfo(np.float32).tiny)
+    if floor > 0 or (floor == 0 and lo > 0):
+        base = 0.0
+    elif floor > -tiny:
+        base = -tiny
+    else:
+        base = -(2.0 ** math.ceil(math.log2(-2.0 * floor)))
+    return base, base - offset
+
+
 @njit(cache=True, nogil=True)
 def normalise_estimate(
-    est: np.ndarray, lo: float, hi: float, policy: int, out: np.ndarray
+    est: np.ndarray,
+    lo: float,
+    hi: float,
+    base: float,
+    shift: float,
+    policy: int,
+    out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Write the estimate to ``out`` with validity in the sign bit.
 
-    ``out > 0``: a valid estimate, its value. ``out <= 0``: missing; ``-out`` is the value
-    to score (KITTI background interpolation under ``interpolate``, 0 otherwise). Valid means
-    finite, > 0 and within ``[lo, hi]``.
+    ``out > 0``: a valid estimate (finite and within ``[lo, hi]``), coded ``value − base``.
+    ``out <= 0``: missing; ``-out`` is the coded value to score (KITTI background
+    interpolation under ``interpolate``, else ``shift``: a value 0). The value scored is
+    ``|out| + shift`` (see :func:`coding`; ``base = shift = 0``: the value itself).
     """
     height, width = est.shape
     first_row = -1
     last_row = -1
     lo32, hi32 = _float32_bounds(lo, hi)
+    base32 = np.float32(base)
+    hole = np.float32(shift)
     for y in range(height):
-        count = _code_row(est[y], lo32, hi32, out[y])
+        count = _code_row(est[y], lo32, hi32, base32, hole, out[y])
         if count == 0:
             continue
         if first_row < 0:
@@ -164,24 +208,32 @@ def normalise_estimate(
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
 def gather_estimate(
-    estimate: np.ndarray, order: np.ndarray, lo: float, hi: float, coded: bool, out: np.ndarray
+    estimate: np.ndarray,
+    order: np.ndarray,
+    lo: float,
+    hi: float,
+    base: float,
+    shift: float,
+    coded: bool,
+    out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Gather the estimate at the evaluated pixels (partition order), validity in the sign.
 
-    ``out[k] > 0``: a valid estimate. ``out[k] <= 0``: missing, to be scored as ``-out[k]``
-    (the interpolated value when ``estimate`` was coded by :func:`normalise_estimate`,
-    otherwise 0).
+    ``out[k] > 0``: a valid estimate. ``out[k] <= 0``: missing, to be scored as
+    ``-out[k] + shift`` (the interpolated value when ``estimate`` was coded by
+    :func:`normalise_estimate`, otherwise 0). Coded as :func:`normalise_estimate` codes.
     """
     for k in range(order.shape[0]):  # a plain gather, then a contiguous pass: both vectorise
         out[k] = estimate[order[k]]
     if coded:  # validity is already in the sign
         return
     lo32, hi32 = _float32_bounds(lo, hi)
-    zero = np.float32(0.0)
+    base32 = np.float32(base)
+    hole = np.float32(shift)
     for k in range(order.shape[0]):
         raw = out[k]
-        valid = (raw > zero) & (raw >= lo32) & (raw <= hi32)
-        out[k] = raw if valid else np.float32(-0.0)
+        valid = (raw >= lo32) & (raw <= hi32)
+        out[k] = raw - base32 if valid else hole
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
@@ -190,16 +242,21 @@ def _disparity_sums(
     gt: np.ndarray,
     fb: float,
     depth_offset: float,
+    mu: float,
     thresholds: np.ndarray,
     extra: bool,
     missing_weight: float,
+    shift: float,
 ) -> tuple[float, ...]:  # pragma: no cover
     """One cell's disparity-domain sums: valid, evaluated, e, e², rel, SZE, BMPRE, D1, bad counts.
 
     The bad counts are those of the :data:`MAX_THRESHOLDS` ``thresholds`` (δ first; ``inf``:
     counts 0), the others only ``if extra`` (a loop-invariant test: the compiler makes two
-    loops). Contiguous slices and no branches, so it vectorises. The bad counts cost little
-    here (a comparison each) and much as passes of their own (each reads both arrays again).
+    loops). The value scored is ``|raw| + shift`` (:func:`coding`); an estimate with
+    ``E + doffs < 0`` (a valid negative disparity) has the far depth ``f·B/μ`` in SZE, as a
+    value ``E + doffs = 0`` has. Contiguous slices and no branches, so it vectorises. The bad
+    counts cost little here (a comparison each) and much as passes of their own (each reads both
+    arrays again).
     """
     n_valid = 0.0
     n_eval = 0.0
@@ -216,7 +273,7 @@ def _disparity_sums(
     for k in range(values.shape[0]):
         raw = np.float64(values[k])
         weight = 1.0 if raw > 0.0 else missing_weight
-        value = abs(raw)
+        value = abs(raw) + shift
         d = np.float64(gt[k])
         e = abs(value - d)
         rel = e / d
@@ -225,7 +282,10 @@ def _disparity_sums(
         sum_e += weight * e
         sum_e2 += weight * e * e
         sum_rel += weight * rel
-        sze += weight * fb * e / abs((d + depth_offset) * (value + depth_offset))
+        # E + doffs < 0: Z_E = f·B/μ, so |Z_D − Z_E| = f·B·|D + doffs| / ((D + o)·μ).
+        far = value + depth_offset < mu
+        e_z = abs(d + depth_offset - mu) if far else e
+        sze += weight * fb * e_z / abs((d + depth_offset) * (mu if far else value + depth_offset))
         bmpre += weight * rel if e > delta else 0.0
         d1 += weight if (e > 3.0 and e > 0.05 * d) else 0.0
         bad0 += weight if e > delta else 0.0
@@ -251,6 +311,7 @@ def _depth_sums(
     depth_offset: float,
     mu: float,
     missing_weight: float,
+    shift: float,
 ) -> tuple[float, float, float, float]:  # pragma: no cover
     """One cell's depth-domain sums: Σ|Z_E − Z_D|, Σ(Z_E − Z_D)², Σ|Z_E − Z_D|/Z_D, Σ(1/Z_E − 1/Z_D)².
 
@@ -263,7 +324,7 @@ def _depth_sums(
         raw = np.float64(values[k])
         weight = 1.0 if raw > 0.0 else missing_weight
         inverse_d = max(np.float64(gt[k]) + doffs, mu)  # f·B / Z of the GT
-        inverse_e = max(abs(raw) + doffs, mu)
+        inverse_e = max(abs(raw) + shift + doffs, mu)
         ez = fb * abs(inverse_d - inverse_e) / (inverse_d * inverse_e)
         sum_ez += weight * ez
         sum_ez2 += weight * ez * ez
@@ -284,6 +345,7 @@ def accumulate_cells(
     thresholds: np.ndarray,
     missing_weight: float,
     depth_terms: bool,
+    shift: float,
     sums: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Accumulate every measure's terms per cell in one pass over the valid-GT points.
@@ -297,6 +359,7 @@ def accumulate_cells(
     ``missing_weight`` is 0 under the ``ignore`` policy (missing points leave the error
     measures) and 1 otherwise. The depth-domain columns are summed only when
     ``depth_terms`` (otherwise they stay 0; measures are derived from requested fields only).
+    The value of a coded estimate is ``|values[k]| + shift`` (:func:`coding`).
     """
     extra = thresholds[1] < np.inf  # bad_X thresholds are listed first, then inf
     for cell in range(offsets.shape[0] - 1):
@@ -305,7 +368,7 @@ def accumulate_cells(
         cell_values = values[start:stop]
         cell_gt = gt_sorted[start:stop]
         terms = _disparity_sums(
-            cell_values, cell_gt, fb, depth_offset, thresholds, extra, missing_weight
+            cell_values, cell_gt, fb, depth_offset, mu, thresholds, extra, missing_weight, shift
         )
         row = sums[cell]
         row[FIELD_N] += stop - start
@@ -320,7 +383,7 @@ def accumulate_cells(
         for t in range(MAX_THRESHOLDS):
             row[FIELD_BAD + t] += terms[8 + t]
         if depth_terms:  # as costly as all the others (two more divisions per point)
-            depth = _depth_sums(cell_values, cell_gt, fb, depth_offset, mu, missing_weight)
+            depth = _depth_sums(cell_values, cell_gt, fb, depth_offset, mu, missing_weight, shift)
             row[FIELD_SUM_EZ] += depth[0]
             row[FIELD_SUM_EZ2] += depth[1]
             row[FIELD_SUM_RELZ] += depth[2]

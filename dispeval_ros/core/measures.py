@@ -7,6 +7,7 @@ therefore exact: sums of sums, never averages of per-frame means.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -182,6 +183,10 @@ devkit). Not in the defaults of disparity GT (they add columns to every table); 
 for LiDAR GT, whose users think in metres."""
 
 
+DEPTH_FIELDS = (k.FIELD_SZE, k.FIELD_SUM_EZ, k.FIELD_SUM_EZ2, k.FIELD_SUM_RELZ, k.FIELD_SUM_IZ2)
+"""The sums that need the camera (f·B): SZE and the depth-domain measures."""
+
+
 def _ratio(numerator: float, denominator: float, scale: float = 1.0) -> float:
     return scale * numerator / denominator if denominator > 0 else math.nan
 
@@ -325,6 +330,16 @@ class Scores(Mapping[str, Mapping[str, float]]):
             }
             for criterion in self.criteria
         }
+
+    def without_camera(self) -> Scores:
+        """These scores with the depth measures (SZE, ``*_z``, irmse) unknown: nan.
+
+        For a frame scored without a camera: its pixel measures need none, but its SZE would be
+        relative (``f·B := 1``) and could not be added to metric frames.
+        """
+        sums = self.sums.copy()
+        sums[:, list(DEPTH_FIELDS)] = math.nan
+        return dataclasses.replace(self, sums=sums, relative=False, _cache={})
 
     @classmethod
     def combine(cls, parts: Sequence[Scores]) -> Scores:

@@ -266,7 +266,9 @@ def kitti_interpolation(estimate: np.ndarray) -> np.ndarray:
     """
     estimate = np.ascontiguousarray(estimate, dtype=F32)
     coded = np.empty_like(estimate)
-    kernels.normalise_estimate(estimate, -math.inf, math.inf, kernels.POLICY_INTERPOLATE, coded)
+    kernels.normalise_estimate(
+        estimate, kernels.POSITIVE, math.inf, 0.0, 0.0, kernels.POLICY_INTERPOLATE, coded
+    )
     filled = np.abs(coded)
     with np.errstate(invalid="ignore"):
         has_valid = (np.isfinite(estimate) & (estimate > 0)).any(axis=1)

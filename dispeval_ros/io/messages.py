@@ -191,8 +191,11 @@ class DisparityFrame:
     """A decoded ``stereo_msgs/DisparityImage``: the map and the fields the evaluation needs.
 
     ``disparity`` holds the values as published, including stereo_image_proc's invalid marker
-    ``min_disparity − 1``: the core treats values outside :attr:`est_range` or ≤ 0 as missing.
-    (Compared by identity: the array makes field-wise equality ambiguous.)
+    ``min_disparity − 1``. As the message defines them, the values are offset-corrected
+    (``d = x_l − x_r − (cx_l − cx_r)``, so ``Z = f·T/d``) and valid inside
+    ``[min_disparity, max_disparity]``, 0 and negative values included; :meth:`scoring` turns
+    that into the core's convention. (Compared by identity: the array makes field-wise
+    equality ambiguous.)
     """
 
     stamp: int
@@ -206,7 +209,7 @@ class DisparityFrame:
 
     @property
     def est_range(self) -> tuple[float, float]:
-        """``(min_disparity, max_disparity)``, or ``(-inf, inf)`` when unset.
+        """``(min_disparity, max_disparity)``, or ``(-inf, inf)`` when unset: valid then means > 0.
 
         Unset means both are 0, either is not finite, or ``max < min``.
         """
@@ -220,11 +223,31 @@ class DisparityFrame:
 
     @property
     def camera(self) -> Camera | None:
-        """``Camera(f, t)`` when the message carries a focal length and baseline (> 0)."""
-        f, t = self.f, self.t
+        """``Camera(f, |t|)`` when the message carries a focal length (> 0) and a baseline ≠ 0.
+
+        A negative ``t`` is a sign convention of some drivers, not another geometry: its
+        magnitude is the baseline (the caller warns once, see :attr:`negative_t`).
+        """
+        f, t = self.f, abs(self.t)
         if math.isfinite(f) and math.isfinite(t) and f > 0 and t > 0:
             return Camera(f, t)
         return None
+
+    @property
+    def negative_t(self) -> bool:
+        """Whether ``t`` is negative (its magnitude is used as the baseline)."""
+        return math.isfinite(self.t) and self.t < 0
+
+    def scoring(self, camera: Camera | None) -> dict[str, Any]:
+        """``est_range`` and ``est_offset`` for ``Evaluator.score``: the message as read.
+
+        The one place where the message's values become the core's disparity ``x_l − x_r``. The
+        core's convention is the datasets': ground truth ``x_l − x_r`` and depth
+        ``Z = f·B/(d + doffs)``. The message's values are ``x_l − x_r + doffs`` (offset-corrected
+        by ``doffs = cx_r − cx_l`` of the camera scored with, 0 without one), so the core scores
+        ``value − doffs``; validity is tested on the values as published.
+        """
+        return {"est_range": self.est_range, "est_offset": camera.doffs if camera else 0.0}
 
 
 def disparity_from_msg(msg: Any, topic: str = "") -> DisparityFrame:
@@ -651,17 +674,26 @@ def disparity_to_msg(
     min_disparity: float,
     max_disparity: float,
     delta_d: float = 1.0 / 16.0,
+    doffs: float = 0.0,
 ) -> Any:
     """A ``stereo_msgs/msg/DisparityImage`` as ROS 2 stereo_image_proc publishes it.
 
-    32FC1 little-endian image with ``step = 4·width``; ``valid_window`` covers the whole image;
-    the image's header equals the message's.
+    ``disparity``, ``min_disparity`` and ``max_disparity`` are ``x_l − x_r`` (a matcher's
+    output); the message carries them offset-corrected as it defines, ``+ doffs``
+    (``doffs = cx_r − cx_l``), so its range stays the range of its values. 32FC1
+    little-endian image with ``step = 4·width``; ``valid_window`` covers the whole image; the
+    image's header equals the message's.
     """
     array = np.asarray(disparity)
     if array.ndim != 2 or array.size == 0:
         raise ConfigurationError(
             f"disparity must be a non-empty H×W array, got shape {array.shape}"
         )
+    if doffs:  # in float32, as the values: a value on a bound stays on it
+        shift = np.float32(doffs)
+        array = array.astype(np.float32) + shift
+        min_disparity = float(np.float32(min_disparity) + shift)
+        max_disparity = float(np.float32(max_disparity) + shift)
     header = _header(typestore, stamp_ns, frame_id)
     height, width = array.shape
     return _build(

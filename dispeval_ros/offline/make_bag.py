@@ -2,9 +2,11 @@
 
 Every method's output is published as a ``stereo_msgs/DisparityImage`` exactly as ROS 2
 stereo_image_proc does (32FC1, ``f``, ``t``, ``min/max_disparity``, ``delta_d = 1/16``,
-invalid pixels = ``min_disparity − 1``, the images' header), logged a little after the images
-as a real pipeline would (each method has its own processing latency), so the bag exercises
-the stamp join the same way a recording of a robot does. A KITTI raw drive
+invalid pixels = ``min_disparity − 1``, values and range offset-corrected by the camera's
+``doffs`` as the message defines, the images' header); the ground truth is an Image of the
+dataset's own ``x_l − x_r`` (the CameraInfo pair carries ``doffs``). Methods are logged a
+little after the images as a real pipeline would (each method has its own processing latency),
+so the bag exercises the stamp join the same way a recording of a robot does. A KITTI raw drive
 (:func:`kitti_raw_frames`) keeps its recorded stamps, stream by stream, and has no GT map;
 ``--est`` maps (:class:`Estimates`) are published beside the methods.
 """
@@ -440,6 +442,7 @@ def write_bag(
                     camera.baseline if camera else 0.0,
                     low,
                     high,
+                    doffs=camera.doffs if camera else 0.0,
                 )
                 latency = 20_000_000 + 15_000_000 * order  # a pipeline's processing time
                 bag.write(disparity_topic(name), stamp + latency, message)

@@ -339,6 +339,8 @@ class EvaluationCore:
         self._cloud_filter = CloudFilter.parse(config.cloud_filter)
         self.failed = dict.fromkeys(config.methods, 0)
         self._failed_lock = threading.Lock()
+        self._negative_t: set[str] = set()
+        """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
     # -- input ------------------------------------------------------------------------------
 
@@ -415,7 +417,8 @@ class EvaluationCore:
                 for method in estimates:
                     self._count_failed(method)
                 return result
-            return self._score_gt_free_only(frame_set, estimates, pair, result)
+            camera = calibration if isinstance(calibration, Camera) else None
+            return self._score_gt_free_only(frame_set, estimates, pair, camera, result)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -426,11 +429,10 @@ class EvaluationCore:
             first = frames[next(iter(estimates))]
             if isinstance(first, DispevalError):
                 raise first
-            if isinstance(calibration, DispevalError):
-                raise calibration
-            camera = calibration if self.config.left_info_topic else first.camera
-            if camera is None:  # scoring it would mix relative SZE into metric totals
-                raise CalibrationError(self._no_camera(first))
+            topic = self._topic(next(iter(estimates)))
+            camera, no_camera = self._frame_camera(first, topic, calibration, result)
+            if camera is None and (self.config.pointcloud or self.config.gt_kind == "depth"):
+                raise CalibrationError(no_camera)  # the ground truth itself needs the camera
             if self.config.pointcloud:
                 gt = self.cloud_disparity(
                     frame_set.gt, camera, first.disparity.shape, infos
@@ -446,6 +448,10 @@ class EvaluationCore:
                 self._count_failed(method)
             result.problems.append((None, f"frame at {frame_set.stamp}: {error}"))
             return result
+        if camera is None:  # pixel measures need no camera; the depth ones say why they are nan
+            result.problems.append(
+                (None, f"frame at {frame_set.stamp}: depth measures not scored: {no_camera}")
+            )
 
         def score_method(method: str) -> FrameResult:
             return self._score_method(method, frames[method], reference, frame_set, pair)
@@ -478,20 +484,47 @@ class EvaluationCore:
         try:
             if isinstance(frame, DispevalError):
                 raise frame
-            gt_scores = self.evaluator.score(reference, frame.disparity, est_range=frame.est_range)
+            terms = frame.scoring(reference.camera)
+            gt_scores = self.evaluator.score(reference, frame.disparity, **terms)
+            if reference.camera is None:
+                gt_scores = gt_scores.without_camera()
             part.scores[method] = joined(
-                gt_scores, self._gt_free_scores(method, frame, frame_set, pair, part)
+                gt_scores,
+                self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
             if self.error_images:
-                part.errors[method] = self.evaluator.error_map(
-                    reference, frame.disparity, frame.est_range
-                )
+                part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition
         except DispevalError as error:
             self._count_failed(method)
             part.problems.append((method, f"{self._topic(method)} at {stamp}: {error}"))
         return part
+
+    def _frame_camera(
+        self,
+        first: DisparityFrame,
+        topic: str,
+        calibration: Camera | DispevalError | None,
+        result: FrameResult,
+    ) -> tuple[Camera | None, str]:
+        """The frame's camera, or None and why (then only the depth measures are lost).
+
+        From the CameraInfo pair when configured, else from the first DisparityImage's f and
+        ``|t|``; a negative ``t`` is said once per topic, as a problem row.
+        """
+        if self.config.left_info_topic:
+            if isinstance(calibration, DispevalError):
+                return None, str(calibration)
+            return calibration, self._no_camera(first)
+        warning = negative_t_warning(first, topic)
+        with self._failed_lock:  # frames may be scored in several threads
+            warn = warning is not None and topic not in self._negative_t
+            if warn:
+                self._negative_t.add(topic)
+        if warn:
+            result.problems.append((None, f"{warning} (said once for this topic)"))
+        return first.camera, self._no_camera(first)
 
     def _no_camera(self, first: DisparityFrame) -> str:
         """Why a frame has no camera (f, B), and what gives it one."""
@@ -499,8 +532,8 @@ class EvaluationCore:
         if left and right:
             return f"no CameraInfo pair received yet on {left} and {right}"
         return (
-            f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected finite "
-            "and > 0); give the CameraInfo topics to take the camera from them"
+            f"no camera: its DisparityImage has f = {first.f:g}, t = {first.t:g} (expected "
+            "finite, f > 0 and t ≠ 0); give the CameraInfo topics to take the camera from them"
         )
 
     # -- ground-truth-free measures ---------------------------------------------------------
@@ -553,6 +586,7 @@ class EvaluationCore:
         frame: DisparityFrame,
         frame_set: FrameSet[Any, Any],
         pair: ImagePair | None,
+        camera: Camera | None,
         result: FrameResult,
     ) -> Scores | None:
         """Beside GT scores: one method's GT-free scores, or empty rows and a problem.
@@ -564,7 +598,7 @@ class EvaluationCore:
         if pair is None:
             return self.gt_free.empty()
         try:
-            return self._score_images(method, frame, frame_set, pair, result)
+            return self._score_images(method, frame, frame_set, pair, camera, result)
         except DispevalError as error:
             result.problems.append(
                 (
@@ -581,6 +615,7 @@ class EvaluationCore:
         frame: DisparityFrame,
         frame_set: FrameSet[Any, Any],
         pair: ImagePair,
+        camera: Camera | None,
         result: FrameResult,
     ) -> Scores:
         """Vpe (and lrc with the method's right view) of one estimate on the frame's images."""
@@ -603,7 +638,7 @@ class EvaluationCore:
         return self.gt_free.score(
             pair,
             frame.disparity,
-            est_range=frame.est_range,
+            **frame.scoring(camera),
             est_right=None if right_view is None else right_view.disparity,
             right_range=None if right_view is None else right_view.est_range,
         )
@@ -613,6 +648,7 @@ class EvaluationCore:
         frame_set: FrameSet[Any, Any],
         estimates: dict[str, tuple[int, Any]],
         pair: ImagePair,
+        camera: Camera | None,
         result: FrameResult,
     ) -> FrameResult:
         """No ground truth: each method's GT-free scores alone (a bad estimate: failed)."""
@@ -620,7 +656,9 @@ class EvaluationCore:
             topic = self._topic(method)
             try:
                 frame = disparity_from_msg(msg, topic)
-                result.scores[method] = self._score_images(method, frame, frame_set, pair, result)
+                result.scores[method] = self._score_images(
+                    method, frame, frame_set, pair, camera, result
+                )
                 result.estimate_stamps[method] = stamp
             except DispevalError as error:
                 self._count_failed(method)
@@ -694,6 +732,16 @@ class EvaluationCore:
             for method, join in self.joiner.counts.items()
             if method in self.failed
         }
+
+
+def negative_t_warning(frame: DisparityFrame, topic: str) -> str | None:
+    """What to say once about a DisparityImage whose ``t`` is negative (None: nothing)."""
+    if not frame.negative_t:
+        return None
+    return (
+        f"{topic}: its DisparityImage has t = {frame.t:g} < 0; its magnitude {abs(frame.t):g} "
+        "is used as the baseline"
+    )
 
 
 def _payload(frame_set: FrameSet[Any, Any], key: str) -> Any:
