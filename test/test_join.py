@@ -115,7 +115,7 @@ def test_drop_oldest_bounds_memory_and_counts() -> None:
     assert dropped is not None
     assert dropped.stamp == 0
     assert joiner.counts["a"].dropped == 1
-    assert joiner.events == [("dropped", "a", 0)]
+    assert joiner.events == [("dropped", "a", 0, 0)]
 
 
 def test_configuration_errors() -> None:
@@ -190,6 +190,6 @@ def test_a_repeated_ground_truth_stamp_is_ignored_after_its_frame_was_emitted() 
     emitted += joiner.flush()
     assert [(f.stamp, f.gt) for f in emitted] == [(100, "gt"), (200, "next")]
     assert joiner.repeated_gt == 1
-    assert ("repeated", "", 100) in (joiner.events or [])
+    assert ("repeated", "", 100, 100) in (joiner.events or [])
     counts = joiner.counts["a"]
     assert (counts.matched, counts.unmatched, counts.dropped) == (2, 1, 0)

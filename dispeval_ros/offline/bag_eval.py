@@ -93,6 +93,7 @@ def evaluate_bags(
     slice_ns: int | None = DEFAULT_SLICE_NS,
     progress: Callable[[int, int, RunReport], None] | None = None,
     alongside: Callable[[], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> RunReport:
     """Evaluate every bag into ``store`` (units already done there are skipped).
 
@@ -102,14 +103,17 @@ def evaluate_bags(
     sequence, so a resumed run cuts the same units whatever its executor).
 
     ``alongside`` runs on a thread of this process while the units run (see :class:`_Alongside`);
-    what it raises is raised once the units are written.
+    what it raises is raised once the units are written. ``warn`` is told, once per bag while
+    planning, what a reader should know (header stamps far from the log time).
     """
     own = executor is None
     engine = make_executor(config, jobs, scheduler) if executor is None else executor
     side = _Alongside(alongside)
     try:
         engine.start(bags)
-        units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers)
+        units, skipped, failed_before = _plan(
+            bags, config, store, slice_ns, engine.workers, warn
+        )
         engine.check(bags)
         report = RunReport(units_skipped=skipped, failed_before=failed_before)
         _run(engine, units, store, report, progress, side.start)
@@ -162,6 +166,7 @@ def _plan(
     store: ResultsStore,
     slice_ns: int | None,
     workers: int,
+    warn: Callable[[str], None] | None = None,
 ) -> tuple[list[Unit], int, int]:
     """Every unit not stored yet, in plan order, with two counts.
 
@@ -179,6 +184,8 @@ def _plan(
             margin = config.tolerance_ns + config.lateness_ns
             chosen = auto_slice_ns(source.start_ns, source.end_ns, workers, margin)
         plan = plan_bag(path, sequence, config, chosen)
+        if plan.warning is not None and warn is not None:
+            warn(plan.warning)
         info = plan.info if slice_ns is not None else {**plan.info, "slice_ns": chosen}
         store.set_sequence(sequence, str(path), info)
         done = store.done_units(sequence)

@@ -1,10 +1,13 @@
 """Units of work of ``dispeval bag``: time slices of bags, planned by the driver, run anywhere.
 
 A unit is read, joined and scored independently, by whichever executor runs it (in process,
-a process pool, a Dask worker), and comes back as rows for the driver to store. A unit reads
-``margin`` beyond its edges so that frames near an edge join exactly as in a single pass; it
-keeps only the ground-truth frames, unmatched estimates and dropped frames whose stamps fall
-inside it.
+a process pool, a Dask worker), and comes back as rows for the driver to store. Units are cut
+by log time, the clock of the join's waits (see :mod:`~dispeval_ros.stream.join`): a unit
+reads ``margin`` (tolerance + lateness) of log time beyond its edges, so that messages near an
+edge join exactly as in a single pass, and keeps only the ground-truth frames, unmatched
+estimates and dropped frames whose deciding message (the GT frame; the estimate, if unmatched)
+was logged inside it. Header stamps only pair messages and name the stored frames, so a bag
+whose stamps are far from its log time (re-recorded, simulated time) loses nothing.
 
 Each process opens a bag once and keeps it open for the units it runs (opening a rosbag2
 folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frames).
@@ -29,6 +32,7 @@ from typing import Any, TypeVar
 
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
+from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import (
     FrameScores,
     MatchCounts,
@@ -57,7 +61,7 @@ _T = TypeVar("_T")
 
 @dataclass(frozen=True)
 class Unit:
-    """One time slice ``[start_ns, stop_ns)`` of one bag (stamps, in nanoseconds)."""
+    """One time slice ``[start_ns, stop_ns)`` of one bag (log time, in nanoseconds)."""
 
     path: Path
     sequence: str
@@ -106,10 +110,11 @@ class UnitFailure:
 
 @dataclass(frozen=True)
 class BagPlan:
-    """A bag's units and what the results database records about it."""
+    """A bag's units, what the results database records about it, and what to warn of."""
 
     units: list[Unit]
     info: dict[str, object]
+    warning: str | None = None
 
 
 # -- opening bags once per process ----------------------------------------------------------
@@ -207,24 +212,64 @@ def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
             core.push(topic, msg)
 
 
+def stamp_offset_ns(source: BagSource, topic: str) -> int | None:
+    """Log time minus header stamp of the first message on ``topic`` (None: none readable).
+
+    Cheap: one message, not a pass over the bag.
+    """
+    messages = source.messages([topic])
+    try:
+        first = next(messages, None)
+    except DispevalError:  # an unreadable message is the units' problem row, not the plan's
+        first = None
+    finally:
+        if isinstance(messages, Generator):
+            messages.close()
+    if first is None or not hasattr(first[2], "header"):
+        return None
+    return first[1] - stamp_ns(first[2].header)
+
+
+def duration_text(ns: int) -> str:
+    """A duration a reader takes in at once: "6.2 years (1.96e+08 s)", "350 ms"."""
+    seconds = abs(ns) / 1e9
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400.0), ("hours", 3600.0)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit} ({seconds:.3g} s)"
+    return f"{seconds:.3g} s" if seconds >= 1 else f"{seconds * 1e3:.3g} ms"
+
+
+def stamp_offset_warning(path: Path, offset_ns: int | None, slice_ns: int) -> str | None:
+    """What to tell when a bag's header stamps are more than a slice from its log time."""
+    if offset_ns is None or abs(offset_ns) <= slice_ns:
+        return None
+    side = "before" if offset_ns > 0 else "after"
+    return (
+        f"{path}: header stamps are {duration_text(offset_ns)} {side} the log time (more than "
+        f"a slice, {duration_text(slice_ns)}); units and waits follow the log time, frames are "
+        "joined and stored by their stamps"
+    )
+
+
 def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> BagPlan:
-    """Check the bag's topics and cut its time span into slices of ``slice_ns``.
+    """Check the bag's topics and cut its log-time span into slices of ``slice_ns``.
 
     The plan depends only on the bag and the slice length, so a resumed run (with any
-    executor) finds the same units.
+    executor) finds the same units. The info records how far the first ground-truth frame's
+    stamp is from its log time (``stamp_offset_ns``: log time minus stamp).
     """
     source = open_bag(path)
     check_topics(source, config)
     start, end = source.start_ns, source.end_ns
     margin = config.tolerance_ns + config.lateness_ns
-    units = []
-    edge = start - margin  # header stamps may precede the first log time
-    index = 0
-    while edge <= end + margin:
+    units: list[Unit] = []
+    edge = start
+    while True:
         stop = edge + slice_ns
-        units.append(Unit(path, sequence, f"{index:06d}", edge, stop, margin))
+        units.append(Unit(path, sequence, f"{len(units):06d}", edge, stop, margin))
+        if stop > end:
+            break
         edge = stop
-        index += 1
     units[0] = Unit(path, sequence, units[0].name, _FIRST, units[0].stop_ns, margin)
     last = units[-1]
     units[-1] = Unit(path, sequence, last.name, last.start_ns, _LAST, margin)
@@ -234,7 +279,13 @@ def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> Ba
         "end_ns": source.end_ns,
         "messages": source.message_count,
     }
-    return BagPlan(units, info)
+    offset = stamp_offset_ns(source, config.gt_topic)
+    if offset is not None:
+        info["stamp_offset_ns"] = offset
+    warning = stamp_offset_warning(path, offset, slice_ns)
+    if warning is not None:
+        info["warning"] = warning
+    return BagPlan(units, info, warning)
 
 
 # -- running --------------------------------------------------------------------------------
@@ -327,7 +378,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     pool = scoring_pool(threads)
     frame_pool = pool if config.tf_topic is None else None  # whole frames side by side
     core = EvaluationCore(config, keep_events=True, executor=pool if frame_pool is None else None)
-    inside = range(unit.start_ns, unit.stop_ns)
+    inside = range(unit.start_ns, unit.stop_ns)  # of log time: the arrival clock
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
     scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult]]] = deque()
@@ -350,7 +401,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 
     def handle(frame_sets: list[FrameSet[Any, Any]]) -> None:
         for frame_set in frame_sets:
-            if frame_set.stamp not in inside:
+            if frame_set.arrival not in inside:
                 continue
             if frame_pool is None:
                 collect(frame_set, core.score(frame_set))
@@ -366,17 +417,16 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         push_static_transforms(source, core)
         messages = source.messages(list(config.topics), read_from, read_to)
         with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
-            for topic, _, msg in ahead:
+            for topic, log_ns, msg in ahead:
                 result.messages += 1
-                handle(core.push(topic, msg))
+                handle(core.push(topic, msg, log_ns))
     except DispevalError as error:
         result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
     handle(core.flush())
     while scoring:
         collect_oldest()
-    events = Counter(
-        (kind, method) for kind, method, stamp in core.joiner.events or [] if stamp in inside
-    )
+    kept = [event for event in core.joiner.events or [] if event.arrival in inside]
+    events = Counter((event.kind, event.method) for event in kept)
     result.problems.extend(
         Problem(
             unit.sequence,
@@ -385,8 +435,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             f"{config.gt_topic} holds the frame at {stamp} more than once: the first is scored, "
             "the others are ignored",
         )
-        for kind, _, stamp in core.joiner.events or []
-        if kind == "repeated" and stamp in inside
+        for kind, _, stamp, _ in kept
+        if kind == "repeated"
     )
     for method in config.methods:
         result.counts[method] = MatchCounts(

@@ -342,13 +342,17 @@ class EvaluationCore:
 
     # -- input ------------------------------------------------------------------------------
 
-    def push(self, topic: str, msg: Any) -> list[FrameSet[Any, Any]]:
-        """Take one message; returns the joined frame sets that are ready to score."""
+    def push(self, topic: str, msg: Any, arrival: int | None = None) -> list[FrameSet[Any, Any]]:
+        """Take one message; returns the joined frame sets that are ready to score.
+
+        ``arrival`` (ns): when it arrived, the clock of the join's waits (a bag's log time,
+        the receipt time live); None takes its header stamp.
+        """
         if topic == self.config.gt_topic:
-            return self.joiner.add_gt(stamp_ns(msg.header), msg)
+            return self.joiner.add_gt(stamp_ns(msg.header), msg, arrival)
         method = self._method_of_topic.get(topic)
         if method is not None:
-            return self.joiner.add_estimate(method, stamp_ns(msg.header), msg)
+            return self.joiner.add_estimate(method, stamp_ns(msg.header), msg, arrival)
         if topic in (self.config.left_info_topic, self.config.right_info_topic):
             self._infos[topic] = msg
             self._camera = None  # recomputed on the next frame from the latest infos
