@@ -278,3 +278,19 @@ def test_the_cli_warns_once_per_bag_when_stamps_are_far_from_the_log_time(
     )
     assert "sip_mb_doffs0_spread.bag: header stamps are 3.8 years" in warnings[1]
     assert "after the log time" in warnings[1]
+
+
+def test_report_thumbnails_find_frames_stamped_years_before_their_log_time(
+    bags: dict[str, Path], tmp_path: Path
+) -> None:
+    """The report reads each chosen frame again around its log time, not its stamp."""
+    from dispeval_ros.report.data import error_thumbnails
+
+    path = bags["sip_kitti"]
+    with evaluate([path], tmp_path, SECOND) as store:
+        thumbnails = error_thumbnails(store, [path], count=2, config=config())
+    assert thumbnails is not None
+    shown = [int(frame["stamp"]) for frame in thumbnails["frames"]]
+    assert len(shown) == 2
+    assert set(shown) <= set(content(path).gt_stamps)
+    assert all(len(frame["images"]) == len(METHODS) for frame in thumbnails["frames"])
