@@ -111,9 +111,7 @@ def evaluate_bags(
     side = _Alongside(alongside)
     try:
         engine.start(bags)
-        units, skipped, failed_before = _plan(
-            bags, config, store, slice_ns, engine.workers, warn
-        )
+        units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers, warn)
         engine.check(bags)
         report = RunReport(units_skipped=skipped, failed_before=failed_before)
         _run(engine, units, store, report, progress, side.start)
