@@ -235,6 +235,7 @@ class CoreConfig:
             "mu": self.mu,
             "tolerance_ns": self.tolerance_ns,
             "lateness_ns": self.lateness_ns,
+            "lateness_clock": "arrival",  # not resumed onto results waited in stamp time
             **(
                 {"extrinsic": list(self.extrinsic or []), "cloud_filter": self.cloud_filter}
                 if self.pointcloud
