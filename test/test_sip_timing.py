@@ -294,3 +294,41 @@ def test_report_thumbnails_find_frames_stamped_years_before_their_log_time(
     assert len(shown) == 2
     assert set(shown) <= set(content(path).gt_stamps)
     assert all(len(frame["images"]) == len(METHODS) for frame in thumbnails["frames"])
+
+
+@pytest.fixture(scope="module")
+def twice(shared_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The KITTI bag recorded twice, 30 s apart in log time, with the same stamps (a looping
+    player recorded without re-stamping)."""
+    path = tmp_path_factory.mktemp("twice") / "sip_kitti_twice.bag"
+    messages = read(shared_data / "stereo-image-proc" / "sip_kitti.bag")
+    with Writer(path) as writer:
+        connections = {}
+        for shift in (0, 30 * SECOND):
+            for message in messages:
+                if message.topic not in connections:
+                    connections[message.topic] = writer.add_connection(
+                        message.topic, message.msgtype, typestore=NOETIC
+                    )
+                data = NOETIC.serialize_ros1(message.msg, message.msgtype)
+                writer.write(connections[message.topic], message.log_ns + shift, data)
+    return path
+
+
+@pytest.mark.parametrize("slice_s", [1, 2, 60])
+def test_a_frame_logged_again_much_later_is_a_repeat_whatever_the_slice(
+    twice: Path, tmp_path: Path, slice_s: int
+) -> None:
+    """The first copy stands: its frames are scored once, the second copy's estimates find no
+    frame (unmatched), each repeated frame is one problem row; never two rows of one stamp."""
+    held = content(twice)
+    stamps = sorted(set(held.gt_stamps))
+    assert len(held.gt_stamps) == 2 * len(stamps) == 10
+    with evaluate([twice], tmp_path, slice_s * SECOND) as store:
+        for method, found in store.match_counts("sip_kitti_twice").items():
+            assert (found.matched, found.unmatched, found.dropped, found.failed) == (5, 5, 0, 0)
+            assert held.estimates[method] == 10
+        assert store.common_stamps("sip_kitti_twice") == stamps
+        problems = store.problems("sip_kitti_twice")
+        assert sorted(problem.stamp for problem in problems) == stamps
+        assert all("more than once" in problem.message for problem in problems)

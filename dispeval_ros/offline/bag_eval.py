@@ -12,6 +12,7 @@ which ``--resume`` replaces by trying the unit again.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -31,6 +32,7 @@ from dispeval_ros.offline.units import (
     failed_result,
     open_bag,
     plan_bag,
+    repeated_elsewhere,
 )
 from dispeval_ros.stream.core import CoreConfig
 
@@ -222,6 +224,8 @@ def _run(
     in_flight = 0
     alone = False  # a retry runs alone, so a worker that dies is its own unit's fault
     written = 0
+    first: dict[str, dict[int, int]] = {}  # per sequence: stamp → arrival of the frames kept
+    stored: dict[str, set[int]] = {}  # per sequence: the stamps an earlier run stored
     while written < len(units):
         while not alone and pending and in_flight < window:
             index = pending[-1]
@@ -250,6 +254,17 @@ def _run(
                 arrived[index] = failed_result(outcome, attempts[index])
         while written in arrived:
             result = arrived.pop(written)
+            unit = units[written]
+            kept = first.setdefault(unit.sequence, {})
+            before = stored.setdefault(unit.sequence, set(store.stamps(unit.sequence)))
+            again = repeated_elsewhere(result, kept, before)
+            if again:  # frames an earlier unit kept, logged again: run it with them as repeats
+                units[written] = dataclasses.replace(unit, seen_stamps=unit.seen_stamps | again)
+                pending.append(written)
+                pending.sort(reverse=True)
+                break
+            for stamp, arrival in result.kept:
+                kept.setdefault(stamp, arrival)
             store.add_prepared(result.rows)
             written += 1
             report.units_done += 1

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import dataclasses
+import itertools
 import os
 import sys
 import threading
@@ -69,6 +70,9 @@ class Unit:
     start_ns: int
     stop_ns: int
     margin_ns: int
+    seen_stamps: frozenset[int] = frozenset()
+    """GT stamps that units before this one kept: a copy of such a frame here is a repeat (a
+    bag holding a frame again, further back than this unit reads), ignored as in one pass."""
 
 
 @dataclass
@@ -80,6 +84,10 @@ class UnitResult:
     problems: list[Problem] = field(default_factory=list)
     counts: dict[str, MatchCounts] = field(default_factory=dict)
     messages: int = 0
+    kept: dict[int, int] = field(default_factory=dict)
+    """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
+    seen: list[tuple[int, int]] = field(default_factory=list)
+    """(stamp, arrival) of every GT message its join took as a frame (not as a repeat)."""
 
 
 @dataclass(frozen=True)
@@ -91,13 +99,26 @@ class UnitRows:
     frames: int
     problems: int
     messages: int
+    kept: tuple[tuple[int, int], ...] = ()
+    """(stamp, arrival) of the GT frames the unit kept."""
+    seen: tuple[tuple[int, int], ...] = ()
+    """(stamp, arrival) of the GT messages it took as frames: the driver checks that no earlier
+    unit kept an earlier copy of one (see :func:`repeated_elsewhere`)."""
 
     @classmethod
     def of(cls, result: UnitResult) -> UnitRows:
         """The rows of an evaluated unit."""
         unit = result.unit
         rows = prepare_unit(unit.sequence, unit.name, result.frames, result.problems, result.counts)
-        return cls(unit, rows, len(result.frames), len(result.problems), result.messages)
+        return cls(
+            unit,
+            rows,
+            len(result.frames),
+            len(result.problems),
+            result.messages,
+            tuple(result.kept.items()),
+            tuple(result.seen),
+        )
 
 
 @dataclass(frozen=True)
@@ -377,7 +398,13 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     result = UnitResult(unit)
     pool = scoring_pool(threads)
     frame_pool = pool if config.tf_topic is None else None  # whole frames side by side
-    core = EvaluationCore(config, keep_events=True, executor=pool if frame_pool is None else None)
+    core = EvaluationCore(
+        config,
+        keep_events=True,
+        executor=pool if frame_pool is None else None,
+        repeat_memory_ns=None,  # a unit is short: every GT stamp it saw is remembered
+        seen_stamps=unit.seen_stamps,
+    )
     inside = range(unit.start_ns, unit.stop_ns)  # of log time: the arrival clock
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
@@ -403,6 +430,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         for frame_set in frame_sets:
             if frame_set.arrival not in inside:
                 continue
+            result.kept[frame_set.stamp] = frame_set.arrival
             if frame_pool is None:
                 collect(frame_set, core.score(frame_set))
                 continue
@@ -416,6 +444,9 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         source = open_bag(unit.path)
         push_static_transforms(source, core)
         messages = source.messages(list(config.topics), read_from, read_to)
+        if read_from is not None:  # and the GT of one margin more: its repeats are known so
+            earlier = source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
+            messages = itertools.chain(earlier, messages)
         with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
             for topic, log_ns, msg in ahead:
                 result.messages += 1
@@ -427,6 +458,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         collect_oldest()
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
+    result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")
+    result.seen = [(e.stamp, e.arrival) for e in core.joiner.events or [] if e.kind == "frame"]
     result.problems.extend(
         Problem(
             unit.sequence,
@@ -446,6 +479,19 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             failed=failed[method],
         )
     return result
+
+
+def repeated_elsewhere(rows: UnitRows, first: dict[int, int], stored: set[int]) -> frozenset[int]:
+    """GT stamps ``rows`` took as frames though units before it kept an earlier copy.
+
+    ``first``: stamp → arrival of the frames kept by the units before (this run); ``stored``:
+    stamps stored by an earlier run (arrival unknown: only a frame kept again counts). A unit
+    reads a margin beyond its edges, so a frame logged again further back than that looks new
+    to it: run again with these as :attr:`Unit.seen_stamps`, it joins as one pass does.
+    """
+    again = {stamp for stamp, arrival in rows.seen if first.get(stamp, arrival) < arrival}
+    again |= stored & {stamp for stamp, _ in rows.kept}
+    return frozenset(again)
 
 
 def run_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitRows | UnitFailure:

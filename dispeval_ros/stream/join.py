@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import bisect
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Generic, NamedTuple, TypeVar
 
@@ -103,8 +103,20 @@ class StampJoiner(Generic[G, E]):
     """
 
     def __init__(
-        self, methods: Sequence[str], tolerance: int, lateness: int = 0, keep_events: bool = False
+        self,
+        methods: Sequence[str],
+        tolerance: int,
+        lateness: int = 0,
+        keep_events: bool = False,
+        *,
+        repeat_memory: int | None = REPEAT_MEMORY_NS,
+        seen: Collection[int] = (),
     ) -> None:
+        """Join ``methods`` with the ground truth.
+
+        ``repeat_memory``: see :data:`REPEAT_MEMORY_NS` (None: every stamp is remembered);
+        ``seen``: GT stamps done with before this join started (their frames are repeats).
+        """
         if not methods:
             raise ConfigurationError("at least one method is needed to join with the ground truth")
         if tolerance < 0 or lateness < 0:
@@ -122,12 +134,14 @@ class StampJoiner(Generic[G, E]):
         self._estimate_order: deque[_Waiting[E]] = deque()
         """Every method's waiting estimates in arrival order (settled ones are skipped)."""
         self._clock: int | None = None
-        self._emitted: set[int] = set()
+        self.repeat_memory = repeat_memory
+        self._emitted: set[int] = set(seen)
         self._emitted_order: deque[tuple[int, int]] = deque()
         self.repeated_gt = 0
         """Ground-truth frames ignored because their stamp was already seen (the first stands)."""
         self.events: list[JoinEvent] | None = [] if keep_events else None
-        """With ``keep_events``: every unmatched, dropped and repeated event, for slicing."""
+        """With ``keep_events``: every GT frame taken ("frame"), unmatched estimate, dropped
+        frame and repeated GT frame, for slicing."""
 
     @property
     def wait(self) -> int:
@@ -144,6 +158,7 @@ class StampJoiner(Generic[G, E]):
             self._event("repeated", "", stamp, now)
             return done
         bisect.insort(self._gt_stamps, stamp)
+        self._event("frame", "", stamp, now)
         self._gt[stamp] = _Pending(FrameSet(stamp, payload, arrival=now), set(self.methods))
         self._gt_order.append((now, stamp))
         for method, queue in self._estimates.items():
@@ -202,7 +217,10 @@ class StampJoiner(Generic[G, E]):
         now = arrival if self._clock is None else max(self._clock, int(arrival))
         self._clock = now
         horizon = now - self.wait
-        while self._emitted_order and self._emitted_order[0][0] < horizon - REPEAT_MEMORY_NS:
+        memory = self.repeat_memory
+        while memory is not None and self._emitted_order:
+            if self._emitted_order[0][0] >= horizon - memory:
+                break
             self._emitted.discard(self._emitted_order.popleft()[1])
         return now, self._expire(horizon)
 
