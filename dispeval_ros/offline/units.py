@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import dataclasses
-import itertools
 import os
 import sys
 import threading
@@ -440,14 +439,21 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 
     read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns
     read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
+
+    def messages(source: BagSource) -> Iterator[tuple[str, int, Any]]:
+        """The unit's messages, after the GT of one margin more before them.
+
+        A frame logged again within a margin of its first copy is then a repeat here too, as
+        in one pass (further apart, the driver tells: :attr:`Unit.seen_stamps`).
+        """
+        if read_from is not None:
+            yield from source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
+        yield from source.messages(list(config.topics), read_from, read_to)
+
     try:
         source = open_bag(unit.path)
         push_static_transforms(source, core)
-        messages = source.messages(list(config.topics), read_from, read_to)
-        if read_from is not None:  # and the GT of one margin more: its repeats are known so
-            earlier = source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
-            messages = itertools.chain(earlier, messages)
-        with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
+        with contextlib.closing(read_ahead(messages(source))) as ahead:  # stopped before the next
             for topic, log_ns, msg in ahead:
                 result.messages += 1
                 handle(core.push(topic, msg, log_ns))
