@@ -36,7 +36,7 @@ SLICE = ("--slice", "0.2")
 
 @pytest.fixture(scope="module")
 def drives(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """Two short drives (12 and 8 frames at 10 Hz, 192×64), about ten units each."""
+    """Two short drives (12 and 8 frames at 10 Hz, 192×64): 6 and 4 units of 0.2 s."""
     root = tmp_path_factory.mktemp("drives")
     paths = [root / "north", root / "south"]
     for path, frames, seed in zip(paths, (12, 8), (3, 4), strict=True):
@@ -338,7 +338,7 @@ def test_each_bag_is_opened_once_per_process(
     record = {**config().as_record(), "slice_ns": 200_000_000}
     with ResultsStore.create(tmp_path, record) as store:
         report = evaluate_bags(drives, config(), store, slice_ns=200_000_000)
-    assert report.units_done > 10
+    assert report.units_done == 10  # several units per bag, each opening it anew if it could
     assert sorted(opened) == sorted(drives)
     assert tables_but_run(tmp_path) == tables_but_run(reference)
 

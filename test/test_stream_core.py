@@ -13,7 +13,7 @@ from rosbags.typesys import Stores, get_typestore
 from sample_feed import bag_reference, expected_counts, robot_stream, sample_bag, sample_config
 
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
+from dispeval_ros.io.messages import disparity_to_msg, image_to_msg, stamp_ns
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
@@ -258,3 +258,27 @@ def test_methods_scored_on_threads_give_the_result_of_one_thread(broken: str) ->
     else:
         assert list(expected.scores) == ["a", "b", "c"]
         assert expected.problems == []
+
+
+def test_live_waits_on_the_receipt_clock_whatever_the_stamps(sample: Path) -> None:
+    """Live, lateness is receipt time: estimates received 1.2 s after their frame (lateness
+    1 s) count unmatched and the frame dropped, although their stamps equal the frame's."""
+    config = sample_config(sample)
+    with BagSource(sample) as source:
+        messages = [(topic, msg) for topic, _, msg in source.messages(list(config.topics))]
+    gt_stamps = sorted({stamp_ns(msg.header) for topic, msg in messages if topic == GT_TOPIC})
+    frames = [[(t, m) for t, m in messages if stamp_ns(m.header) == s] for s in gt_stamps[:2]]
+    now = [0.0]  # seconds of receipt time, decades away from the stamps
+    results: list[FrameResult] = []
+    live = LiveEvaluator(config, results.append, clock=lambda: now[0])
+    for index, frame in enumerate(frames):
+        now[0] = 10.0 * index
+        for topic, msg in frame:
+            if topic in config.methods.values():
+                now[0] = 10.0 * index + (0.3 if index == 0 else 1.2)
+            live.push(topic, msg)
+    live.stop(flush=True)
+    assert [result.stamp for result in results] == gt_stamps[:1]
+    assert set(results[0].scores) == set(config.methods)
+    for method, counts in live.counts().items():
+        assert (counts.matched, counts.unmatched, counts.dropped) == (1, 1, 1), method

@@ -38,7 +38,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="BAG",
         help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
     )
-    run = streams.add_stream_options(parser, "log time")
+    run = streams.add_stream_options(parser)
     run.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     run.add_argument(
         "--scheduler",
@@ -160,6 +160,7 @@ def run_command(args: argparse.Namespace) -> int:
             slice_ns=slice_ns,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
             alongside=digests.compute,
+            warn=lambda text: print(f"dispeval bag: warning: {text}", file=sys.stderr),
         )
         rows = store.export_csv(args.out / "frames.csv")
         summary = summarize(store, args.objective_measures, args.objectives)

@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default="dds",
         help="'dds' (Cyclone DDS, interoperates with rmw_cyclonedds_cpp); the only one for now",
     )
-    run = streams.add_stream_options(parser, "stamp time")
+    run = streams.add_stream_options(parser)
     alarms = parser.add_argument_group("alarms (levels of the published statuses)")
     alarms.add_argument("--warn", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=20")
     alarms.add_argument("--error", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=40")

@@ -12,14 +12,13 @@ from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.join import LATENESS_RULE
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
 
 
-def add_stream_options(
-    parser: argparse.ArgumentParser, lateness_clock: str
-) -> argparse._ArgumentGroup:
+def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
     """Topics, sync, evaluation and model options; returns the "run" group for the rest."""
     topics = parser.add_argument_group("topics")
     gt = topics.add_mutually_exclusive_group()
@@ -90,8 +89,7 @@ def add_stream_options(
         "--lateness",
         type=float,
         default=1000.0,
-        help=f"how late (ms, in {lateness_clock}) an estimate may arrive after its ground truth "
-        "(default 1000)",
+        help=f"{LATENESS_RULE} (ms, default 1000)",
     )
     common.add_evaluation_options(parser)
     run = parser.add_argument_group("run")

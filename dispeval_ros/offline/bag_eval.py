@@ -12,6 +12,7 @@ which ``--resume`` replaces by trying the unit again.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -31,6 +32,7 @@ from dispeval_ros.offline.units import (
     failed_result,
     open_bag,
     plan_bag,
+    repeated_elsewhere,
 )
 from dispeval_ros.stream.core import CoreConfig
 
@@ -93,6 +95,7 @@ def evaluate_bags(
     slice_ns: int | None = DEFAULT_SLICE_NS,
     progress: Callable[[int, int, RunReport], None] | None = None,
     alongside: Callable[[], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> RunReport:
     """Evaluate every bag into ``store`` (units already done there are skipped).
 
@@ -102,14 +105,15 @@ def evaluate_bags(
     sequence, so a resumed run cuts the same units whatever its executor).
 
     ``alongside`` runs on a thread of this process while the units run (see :class:`_Alongside`);
-    what it raises is raised once the units are written.
+    what it raises is raised once the units are written. ``warn`` is told, once per bag while
+    planning, what a reader should know (header stamps far from the log time).
     """
     own = executor is None
     engine = make_executor(config, jobs, scheduler) if executor is None else executor
     side = _Alongside(alongside)
     try:
         engine.start(bags)
-        units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers)
+        units, skipped, failed_before = _plan(bags, config, store, slice_ns, engine.workers, warn)
         engine.check(bags)
         report = RunReport(units_skipped=skipped, failed_before=failed_before)
         _run(engine, units, store, report, progress, side.start)
@@ -162,6 +166,7 @@ def _plan(
     store: ResultsStore,
     slice_ns: int | None,
     workers: int,
+    warn: Callable[[str], None] | None = None,
 ) -> tuple[list[Unit], int, int]:
     """Every unit not stored yet, in plan order, with two counts.
 
@@ -179,6 +184,8 @@ def _plan(
             margin = config.tolerance_ns + config.lateness_ns
             chosen = auto_slice_ns(source.start_ns, source.end_ns, workers, margin)
         plan = plan_bag(path, sequence, config, chosen)
+        if plan.warning is not None and warn is not None:
+            warn(plan.warning)
         info = plan.info if slice_ns is not None else {**plan.info, "slice_ns": chosen}
         store.set_sequence(sequence, str(path), info)
         done = store.done_units(sequence)
@@ -217,6 +224,8 @@ def _run(
     in_flight = 0
     alone = False  # a retry runs alone, so a worker that dies is its own unit's fault
     written = 0
+    first: dict[str, dict[int, int]] = {}  # per sequence: stamp → arrival of the frames kept
+    stored: dict[str, set[int]] = {}  # per sequence: the stamps an earlier run stored
     while written < len(units):
         while not alone and pending and in_flight < window:
             index = pending[-1]
@@ -245,6 +254,17 @@ def _run(
                 arrived[index] = failed_result(outcome, attempts[index])
         while written in arrived:
             result = arrived.pop(written)
+            unit = units[written]
+            kept = first.setdefault(unit.sequence, {})
+            before = stored.setdefault(unit.sequence, set(store.stamps(unit.sequence)))
+            again = repeated_elsewhere(result, kept, before)
+            if again:  # frames an earlier unit kept, logged again: run it with them as repeats
+                units[written] = dataclasses.replace(unit, seen_stamps=unit.seen_stamps | again)
+                pending.append(written)
+                pending.sort(reverse=True)
+                break
+            for stamp, arrival in result.kept:
+                kept.setdefault(stamp, arrival)
             store.add_prepared(result.rows)
             written += 1
             report.units_done += 1

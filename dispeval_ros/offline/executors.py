@@ -122,8 +122,12 @@ def end_with_the_parent() -> None:
     Ctrl-C (sent to the whole process group) is the driver's to handle: it stops taking units
     and shuts the pool down. If the driver is killed outright, Linux sends the worker SIGKILL
     (``PR_SET_PDEATHSIG``), so no worker outlives it or prints tracebacks after the prompt.
+    SIGTERM ends a worker at once: the pool terminates its workers with it when one died, and a
+    worker that raised the driver's inherited "stop cleanly" instead would retry sending its
+    result into a pipe nobody reads any more, and hang the run.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):
         try:
             libc = ctypes.CDLL(None, use_errno=True)

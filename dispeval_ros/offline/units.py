@@ -1,10 +1,13 @@
 """Units of work of ``dispeval bag``: time slices of bags, planned by the driver, run anywhere.
 
 A unit is read, joined and scored independently, by whichever executor runs it (in process,
-a process pool, a Dask worker), and comes back as rows for the driver to store. A unit reads
-``margin`` beyond its edges so that frames near an edge join exactly as in a single pass; it
-keeps only the ground-truth frames, unmatched estimates and dropped frames whose stamps fall
-inside it.
+a process pool, a Dask worker), and comes back as rows for the driver to store. Units are cut
+by log time, the clock of the join's waits (see :mod:`~dispeval_ros.stream.join`): a unit
+reads ``margin`` (tolerance + lateness) of log time beyond its edges, so that messages near an
+edge join exactly as in a single pass, and keeps only the ground-truth frames, unmatched
+estimates and dropped frames whose deciding message (the GT frame; the estimate, if unmatched)
+was logged inside it. Header stamps only pair messages and name the stored frames, so a bag
+whose stamps are far from its log time (re-recorded, simulated time) loses nothing.
 
 Each process opens a bag once and keeps it open for the units it runs (opening a rosbag2
 folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frames).
@@ -29,6 +32,7 @@ from typing import Any, TypeVar
 
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
+from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import (
     FrameScores,
     MatchCounts,
@@ -57,7 +61,7 @@ _T = TypeVar("_T")
 
 @dataclass(frozen=True)
 class Unit:
-    """One time slice ``[start_ns, stop_ns)`` of one bag (stamps, in nanoseconds)."""
+    """One time slice ``[start_ns, stop_ns)`` of one bag (log time, in nanoseconds)."""
 
     path: Path
     sequence: str
@@ -65,6 +69,9 @@ class Unit:
     start_ns: int
     stop_ns: int
     margin_ns: int
+    seen_stamps: frozenset[int] = frozenset()
+    """GT stamps that units before this one kept: a copy of such a frame here is a repeat (a
+    bag holding a frame again, further back than this unit reads), ignored as in one pass."""
 
 
 @dataclass
@@ -76,6 +83,10 @@ class UnitResult:
     problems: list[Problem] = field(default_factory=list)
     counts: dict[str, MatchCounts] = field(default_factory=dict)
     messages: int = 0
+    kept: dict[int, int] = field(default_factory=dict)
+    """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
+    seen: list[tuple[int, int]] = field(default_factory=list)
+    """(stamp, arrival) of every GT message its join took as a frame (not as a repeat)."""
 
 
 @dataclass(frozen=True)
@@ -87,13 +98,26 @@ class UnitRows:
     frames: int
     problems: int
     messages: int
+    kept: tuple[tuple[int, int], ...] = ()
+    """(stamp, arrival) of the GT frames the unit kept."""
+    seen: tuple[tuple[int, int], ...] = ()
+    """(stamp, arrival) of the GT messages it took as frames: the driver checks that no earlier
+    unit kept an earlier copy of one (see :func:`repeated_elsewhere`)."""
 
     @classmethod
     def of(cls, result: UnitResult) -> UnitRows:
         """The rows of an evaluated unit."""
         unit = result.unit
         rows = prepare_unit(unit.sequence, unit.name, result.frames, result.problems, result.counts)
-        return cls(unit, rows, len(result.frames), len(result.problems), result.messages)
+        return cls(
+            unit,
+            rows,
+            len(result.frames),
+            len(result.problems),
+            result.messages,
+            tuple(result.kept.items()),
+            tuple(result.seen),
+        )
 
 
 @dataclass(frozen=True)
@@ -106,10 +130,11 @@ class UnitFailure:
 
 @dataclass(frozen=True)
 class BagPlan:
-    """A bag's units and what the results database records about it."""
+    """A bag's units, what the results database records about it, and what to warn of."""
 
     units: list[Unit]
     info: dict[str, object]
+    warning: str | None = None
 
 
 # -- opening bags once per process ----------------------------------------------------------
@@ -207,24 +232,64 @@ def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
             core.push(topic, msg)
 
 
+def stamp_offset_ns(source: BagSource, topic: str) -> int | None:
+    """Log time minus header stamp of the first message on ``topic`` (None: none readable).
+
+    Cheap: one message, not a pass over the bag.
+    """
+    messages = source.messages([topic])
+    try:
+        first = next(messages, None)
+    except DispevalError:  # an unreadable message is the units' problem row, not the plan's
+        first = None
+    finally:
+        if isinstance(messages, Generator):
+            messages.close()
+    if first is None or not hasattr(first[2], "header"):
+        return None
+    return first[1] - stamp_ns(first[2].header)
+
+
+def duration_text(ns: int) -> str:
+    """A duration a reader takes in at once: "6.2 years (1.96e+08 s)", "350 ms"."""
+    seconds = abs(ns) / 1e9
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400.0), ("hours", 3600.0)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit} ({seconds:.3g} s)"
+    return f"{seconds:.3g} s" if seconds >= 1 else f"{seconds * 1e3:.3g} ms"
+
+
+def stamp_offset_warning(path: Path, offset_ns: int | None, slice_ns: int) -> str | None:
+    """What to tell when a bag's header stamps are more than a slice from its log time."""
+    if offset_ns is None or abs(offset_ns) <= slice_ns:
+        return None
+    side = "before" if offset_ns > 0 else "after"
+    return (
+        f"{path}: header stamps are {duration_text(offset_ns)} {side} the log time (more than "
+        f"a slice, {duration_text(slice_ns)}); units and waits follow the log time, frames are "
+        "joined and stored by their stamps"
+    )
+
+
 def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> BagPlan:
-    """Check the bag's topics and cut its time span into slices of ``slice_ns``.
+    """Check the bag's topics and cut its log-time span into slices of ``slice_ns``.
 
     The plan depends only on the bag and the slice length, so a resumed run (with any
-    executor) finds the same units.
+    executor) finds the same units. The info records how far the first ground-truth frame's
+    stamp is from its log time (``stamp_offset_ns``: log time minus stamp).
     """
     source = open_bag(path)
     check_topics(source, config)
     start, end = source.start_ns, source.end_ns
     margin = config.tolerance_ns + config.lateness_ns
-    units = []
-    edge = start - margin  # header stamps may precede the first log time
-    index = 0
-    while edge <= end + margin:
+    units: list[Unit] = []
+    edge = start
+    while True:
         stop = edge + slice_ns
-        units.append(Unit(path, sequence, f"{index:06d}", edge, stop, margin))
+        units.append(Unit(path, sequence, f"{len(units):06d}", edge, stop, margin))
+        if stop > end:
+            break
         edge = stop
-        index += 1
     units[0] = Unit(path, sequence, units[0].name, _FIRST, units[0].stop_ns, margin)
     last = units[-1]
     units[-1] = Unit(path, sequence, last.name, last.start_ns, _LAST, margin)
@@ -234,7 +299,13 @@ def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> Ba
         "end_ns": source.end_ns,
         "messages": source.message_count,
     }
-    return BagPlan(units, info)
+    offset = stamp_offset_ns(source, config.gt_topic)
+    if offset is not None:
+        info["stamp_offset_ns"] = offset
+    warning = stamp_offset_warning(path, offset, slice_ns)
+    if warning is not None:
+        info["warning"] = warning
+    return BagPlan(units, info, warning)
 
 
 # -- running --------------------------------------------------------------------------------
@@ -326,8 +397,14 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     result = UnitResult(unit)
     pool = scoring_pool(threads)
     frame_pool = pool if config.tf_topic is None else None  # whole frames side by side
-    core = EvaluationCore(config, keep_events=True, executor=pool if frame_pool is None else None)
-    inside = range(unit.start_ns, unit.stop_ns)
+    core = EvaluationCore(
+        config,
+        keep_events=True,
+        executor=pool if frame_pool is None else None,
+        repeat_memory_ns=None,  # a unit is short: every GT stamp it saw is remembered
+        seen_stamps=unit.seen_stamps,
+    )
+    inside = range(unit.start_ns, unit.stop_ns)  # of log time: the arrival clock
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
     scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult]]] = deque()
@@ -350,8 +427,9 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 
     def handle(frame_sets: list[FrameSet[Any, Any]]) -> None:
         for frame_set in frame_sets:
-            if frame_set.stamp not in inside:
+            if frame_set.arrival not in inside:
                 continue
+            result.kept[frame_set.stamp] = frame_set.arrival
             if frame_pool is None:
                 collect(frame_set, core.score(frame_set))
                 continue
@@ -361,22 +439,33 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 
     read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns
     read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
+
+    def messages(source: BagSource) -> Iterator[tuple[str, int, Any]]:
+        """The unit's messages, after the GT of one margin more before them.
+
+        A frame logged again within a margin of its first copy is then a repeat here too, as
+        in one pass (further apart, the driver tells: :attr:`Unit.seen_stamps`).
+        """
+        if read_from is not None:
+            yield from source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
+        yield from source.messages(list(config.topics), read_from, read_to)
+
     try:
         source = open_bag(unit.path)
         push_static_transforms(source, core)
-        messages = source.messages(list(config.topics), read_from, read_to)
-        with contextlib.closing(read_ahead(messages)) as ahead:  # stopped before the next unit
-            for topic, _, msg in ahead:
+        with contextlib.closing(read_ahead(messages(source))) as ahead:  # stopped before the next
+            for topic, log_ns, msg in ahead:
                 result.messages += 1
-                handle(core.push(topic, msg))
+                handle(core.push(topic, msg, log_ns))
     except DispevalError as error:
         result.problems.append(Problem(unit.sequence, None, None, f"reading stopped: {error}"))
     handle(core.flush())
     while scoring:
         collect_oldest()
-    events = Counter(
-        (kind, method) for kind, method, stamp in core.joiner.events or [] if stamp in inside
-    )
+    kept = [event for event in core.joiner.events or [] if event.arrival in inside]
+    events = Counter((event.kind, event.method) for event in kept)
+    result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")
+    result.seen = [(e.stamp, e.arrival) for e in core.joiner.events or [] if e.kind == "frame"]
     result.problems.extend(
         Problem(
             unit.sequence,
@@ -385,8 +474,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             f"{config.gt_topic} holds the frame at {stamp} more than once: the first is scored, "
             "the others are ignored",
         )
-        for kind, _, stamp in core.joiner.events or []
-        if kind == "repeated" and stamp in inside
+        for kind, _, stamp, _ in kept
+        if kind == "repeated"
     )
     for method in config.methods:
         result.counts[method] = MatchCounts(
@@ -396,6 +485,19 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             failed=failed[method],
         )
     return result
+
+
+def repeated_elsewhere(rows: UnitRows, first: dict[int, int], stored: set[int]) -> frozenset[int]:
+    """GT stamps ``rows`` took as frames though units before it kept an earlier copy.
+
+    ``first``: stamp → arrival of the frames kept by the units before (this run); ``stored``:
+    stamps stored by an earlier run (arrival unknown: only a frame kept again counts). A unit
+    reads a margin beyond its edges, so a frame logged again further back than that looks new
+    to it: run again with these as :attr:`Unit.seen_stamps`, it joins as one pass does.
+    """
+    again = {stamp for stamp, arrival in rows.seen if first.get(stamp, arrival) < arrival}
+    again |= stored & {stamp for stamp, _ in rows.kept}
+    return frozenset(again)
 
 
 def run_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitRows | UnitFailure:

@@ -618,6 +618,9 @@ def error_thumbnails(
     sequence's common frames) are read from the bag again, joined and scored by
     :class:`~dispeval_ros.stream.core.EvaluationCore` with ``error_images=True`` and rendered by
     :func:`~dispeval_ros.stream.images.colour_error` (turbo, 0–4 px, criterion borders white).
+    A frame is looked for around its log time: its stamp moved by the sequence's
+    ``stamp_offset_ns`` (recorded by :func:`~dispeval_ros.offline.units.plan_bag`), within
+    twice the join's margin (a frame whose offset drifted further is not shown).
     """
     from dispeval_ros.io.bags import BagSource
     from dispeval_ros.offline.units import push_static_transforms
@@ -637,14 +640,19 @@ def error_thumbnails(
         wanted = _spread(store.common_stamps(sequence), share)
         if not wanted:
             continue
+        offset = store.sequence_info(sequence)[1].get("stamp_offset_ns", 0)
+        offset = offset if isinstance(offset, int) else 0
         with BagSource(matched[sequence]) as source:
             for stamp in wanted:
                 core = EvaluationCore(config, error_images=True)
                 push_static_transforms(source, core)
                 found = None
-                messages = source.messages(list(config.topics), stamp - margin, stamp + margin + 1)
-                for topic, _, msg in messages:
-                    for frame_set in core.push(topic, msg):
+                logged = stamp + offset
+                messages = source.messages(
+                    list(config.topics), logged - 2 * margin, logged + 2 * margin + 1
+                )
+                for topic, log_ns, msg in messages:
+                    for frame_set in core.push(topic, msg, log_ns):
                         if frame_set.stamp == stamp and found is None:
                             found = core.score(frame_set)
                 for frame_set in core.flush():

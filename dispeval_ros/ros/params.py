@@ -27,6 +27,7 @@ from typing import Any
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.stream.core import GT_KINDS, CoreConfig
+from dispeval_ros.stream.join import LATENESS_RULE
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.vectors import AlarmThresholds
 from dispeval_ros.summary import GRANULARITIES
@@ -226,8 +227,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "lateness",
         DOUBLE,
         1.0,
-        "How far (s of header-stamp time) a message may arrive behind the newest one; a frame "
-        "still missing a method after that is scored without it (the method counts it dropped)",
+        f"{LATENESS_RULE[0].upper()}{LATENESS_RULE[1:]} (s)",
         "[0, 600] s",
         low=0.0,
         high=600.0,

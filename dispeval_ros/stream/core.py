@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,7 +47,7 @@ from dispeval_ros.io.messages import (
     static_transforms_from_msg,
     stereo_grey,
 )
-from dispeval_ros.stream.join import FrameSet, JoinCounts, StampJoiner
+from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
 
 DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
 IMAGE_TYPE = "sensor_msgs/msg/Image"
@@ -235,6 +235,7 @@ class CoreConfig:
             "mu": self.mu,
             "tolerance_ns": self.tolerance_ns,
             "lateness_ns": self.lateness_ns,
+            "lateness_clock": "arrival",  # not resumed onto results waited in stamp time
             **(
                 {"extrinsic": list(self.extrinsic or []), "cloud_filter": self.cloud_filter}
                 if self.pointcloud
@@ -316,7 +317,10 @@ class EvaluationCore:
         keep_events: bool = False,
         error_images: bool = False,
         executor: Executor | None = None,
+        repeat_memory_ns: int | None = REPEAT_MEMORY_NS,
+        seen_stamps: Collection[int] = (),
     ) -> None:
+        """``repeat_memory_ns`` and ``seen_stamps``: see :class:`StampJoiner`."""
         self.config = config
         self.error_images = error_images
         self.executor = executor
@@ -326,7 +330,12 @@ class EvaluationCore:
         self.gt_free = config.ground_truth_free()
         auxiliary = config.auxiliary()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
-            [*config.methods, *auxiliary], config.tolerance_ns, config.lateness_ns, keep_events
+            [*config.methods, *auxiliary],
+            config.tolerance_ns,
+            config.lateness_ns,
+            keep_events,
+            repeat_memory=repeat_memory_ns,
+            seen=seen_stamps,
         )
         self._method_of_topic = {topic: name for name, topic in config.methods.items()}
         self._method_of_topic.update({topic: key for key, topic in auxiliary.items()})
@@ -344,13 +353,17 @@ class EvaluationCore:
 
     # -- input ------------------------------------------------------------------------------
 
-    def push(self, topic: str, msg: Any) -> list[FrameSet[Any, Any]]:
-        """Take one message; returns the joined frame sets that are ready to score."""
+    def push(self, topic: str, msg: Any, arrival: int | None = None) -> list[FrameSet[Any, Any]]:
+        """Take one message; returns the joined frame sets that are ready to score.
+
+        ``arrival`` (ns): when it arrived, the clock of the join's waits (a bag's log time,
+        the receipt time live); None takes its header stamp.
+        """
         if topic == self.config.gt_topic:
-            return self.joiner.add_gt(stamp_ns(msg.header), msg)
+            return self.joiner.add_gt(stamp_ns(msg.header), msg, arrival)
         method = self._method_of_topic.get(topic)
         if method is not None:
-            return self.joiner.add_estimate(method, stamp_ns(msg.header), msg)
+            return self.joiner.add_estimate(method, stamp_ns(msg.header), msg, arrival)
         if topic in (self.config.left_info_topic, self.config.right_info_topic):
             self._infos[topic] = msg
             self._camera = None  # recomputed on the next frame from the latest infos

@@ -1,7 +1,8 @@
 """Live evaluation: the evaluation core behind a bounded queue and one scoring thread.
 
-Transport callbacks call :meth:`LiveEvaluator.push`, which only joins by stamp (microseconds)
-and never blocks: joined frames wait in a bounded queue, and when scoring cannot keep up the
+Transport callbacks call :meth:`LiveEvaluator.push`, which only joins by stamp (microseconds;
+the receipt time is the join's arrival clock, see :mod:`~dispeval_ros.stream.join`) and never
+blocks: joined frames wait in a bounded queue, and when scoring cannot keep up the
 oldest waiting frame is dropped and counted for every method in it. A worker thread scores
 and hands each :class:`~dispeval_ros.stream.core.FrameResult` to the front end's callback.
 """
@@ -76,7 +77,7 @@ class LiveEvaluator:
         with self._lock:
             if self._stopping:
                 return
-            ready = self.core.push(topic, msg)
+            ready = self.core.push(topic, msg, round(arrived * 1e9))  # receipt time
             while self.core.joiner.buffered > self.max_buffered:
                 if self.core.joiner.drop_oldest() is None:
                     break
