@@ -874,6 +874,9 @@ LAYOUTS = {
     **{f"middeval3-training-Q/{scene}": "middeval3" for scene in MIDDEVAL3_SCENES},
 }
 
+BAG_FOLDERS = {"stereo-image-proc": ("test_sip_timing.py", "test_sip_values.py")}
+"""Shared folders of recorded bags (not scene layouts), and the tests that read them."""
+
 
 @pytest.mark.data
 @pytest.mark.parametrize(("folder", "layout"), sorted(LAYOUTS.items()))
@@ -895,7 +898,10 @@ def test_real_layouts(shared_data: Path, folder: str, layout: str) -> None:
 
 @pytest.mark.data
 def test_real_data_all_folders_covered(shared_data: Path) -> None:
-    """Every dataset folder of the shared data is one of the layouts tested above."""
+    """Every folder of the shared data is a layout tested above or recorded bags tested elsewhere."""
     tops = {path.name for path in shared_data.iterdir() if path.is_dir()}
     covered = {folder.split("/")[0] for folder in LAYOUTS}
-    assert tops == covered
+    assert tops == covered | set(BAG_FOLDERS)
+    for folder, test_files in BAG_FOLDERS.items():
+        for test_file in test_files:
+            assert folder in (Path(__file__).parent / test_file).read_text(), test_file
