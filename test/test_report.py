@@ -845,7 +845,9 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
         chosen = Selection(("drive",), GT_AND_FREE, (*default.measures, "vpe"), default.methods)
         check_display(displayed(page), store, chosen, "astar")
         warnings = page.text_content("#warnings") or ""
-        assert "Skipped 4 criterion/measure pairs that do not apply" in warnings
+        # the default measures follow the rule of the objectives (bmp and mae, not density)
+        assert default.measures == ("bmp", "mae")
+        assert "Skipped 6 criterion/measure pairs that do not apply" in warnings
         for pair in skipped_pairs(chosen):
             assert pair in warnings
         assert "NaN" not in (page.text_content("#objective-names") or "")
