@@ -25,6 +25,7 @@ from rosbags.typesys import Stores, get_typestore
 from sample_feed import stored_scores
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.io.store import ResultsStore
 
 DRIVE = "kitti-raw-drive-0048/2011_09_26/2011_09_26_drive_0048_sync"
 FRAMES = 11
@@ -285,6 +286,27 @@ def test_bag_scores_equal_an_independent_projection(
             for name in ("bmp", "d1"):  # a point within 1e-5 px of a threshold may flip
                 assert abs(got[name] - expected[name]) <= 100 / n + 1e-9, (method, index, name)
             assert got["density"] == pytest.approx(_density(gt, valid), rel=1e-9), (method, index)
+
+
+@pytest.mark.data
+def test_the_default_tolerance_says_how_far_the_scans_are(raw_bag: Path, tmp_path: Path) -> None:
+    """KITTI stamps its scans ~10.5 ms from the images: with the default 10 ms nothing pairs,
+    and each method's problem row says how far the nearest GT stamps were (not a silent 0)."""
+    out = tmp_path / "out"
+    methods = [arg for m in METHODS for arg in ("--method", f"{m}={_topic(m)}")]
+    args = ["bag", str(raw_bag), "--gt-cloud", CLOUD, "--camera-info", LEFT_INFO, RIGHT_INFO]
+    assert main([*args, *methods, "--out", str(out)]) == 0
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        for method, found in store.match_counts(sequence).items():
+            assert (found.matched, found.unmatched, found.dropped) == (0, FRAMES, FRAMES), method
+        hints = {problem.method: problem.message for problem in store.problems(sequence)}
+    assert set(hints) == set(METHODS)
+    for method, message in hints.items():
+        assert message.startswith(f"{FRAMES} estimate(s) of {method} found no {CLOUD} frame")
+        assert "within --tolerance 10 ms" in message
+        low, high = (float(v) for v in message.split("were ")[1].split(" ms")[0].split("–"))
+        assert 10.0 < low <= high < 11.0  # the gaps make-bag prints (up to 10.55 ms)
 
 
 @pytest.mark.slow

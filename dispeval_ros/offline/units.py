@@ -15,6 +15,7 @@ folder parses its metadata YAML: 50–100 ms, as long as reading dozens of frame
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import ctypes
 import dataclasses
@@ -23,7 +24,7 @@ import sys
 import threading
 import traceback
 from collections import Counter, OrderedDict, deque
-from collections.abc import Generator, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +43,7 @@ from dispeval_ros.io.store import (
     prepare_unit,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
-from dispeval_ros.stream.join import FrameSet
+from dispeval_ros.stream.join import FrameSet, JoinEvent
 
 DEFAULT_SLICE_NS = 5_000_000_000
 AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)
@@ -474,9 +475,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             f"{config.gt_topic} holds the frame at {stamp} more than once: the first is scored, "
             "the others are ignored",
         )
-        for kind, _, stamp, _ in kept
+        for kind, _, stamp, *_ in kept
         if kind == "repeated"
     )
+    result.problems.extend(unmatched_hints(config, unit.sequence, kept, core.joiner.events or []))
     for method in config.methods:
         result.counts[method] = MatchCounts(
             matched=matched[method],
@@ -485,6 +487,40 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             failed=failed[method],
         )
     return result
+
+
+def unmatched_hints(
+    config: CoreConfig, sequence: str, kept: Iterable[JoinEvent], read: Iterable[JoinEvent]
+) -> list[Problem]:
+    """One problem per method whose ``kept`` estimates had no GT stamp within the tolerance.
+
+    ``read``: every event of the unit's read (its GT "frame" events give the stamps). A user
+    sees at once whether the tolerance is too tight (a LiDAR stamped 10.5 ms from its images)
+    or the streams do not belong together.
+    """
+    frames = sorted(event.stamp for event in read if event.kind == "frame")
+    if not frames:
+        return []
+    gaps: dict[str, list[int]] = {}
+    for event in kept:
+        if event.kind == "unmatched":
+            index = bisect.bisect_left(frames, event.stamp)
+            gap = min(
+                abs(frames[i] - event.stamp) for i in (index - 1, index) if 0 <= i < len(frames)
+            )
+            if gap > config.tolerance_ns:  # (within it, a frame was there: late or a copy)
+                gaps.setdefault(event.method, []).append(gap)
+    return [
+        Problem(
+            sequence,
+            None,
+            method,
+            f"{len(found)} estimate(s) of {method} found no {config.gt_topic} frame within "
+            f"--tolerance {config.tolerance_ns / 1e6:g} ms; the nearest GT stamps were "
+            f"{min(found) / 1e6:.3f}–{max(found) / 1e6:.3f} ms away",
+        )
+        for method, found in gaps.items()
+    ]
 
 
 def repeated_elsewhere(rows: UnitRows, first: dict[int, int], stored: set[int]) -> frozenset[int]:
