@@ -166,12 +166,12 @@ def _weighted_mean(
 #: How a protocol scores one frame: the dataset's arrays, one estimate, one arithmetic.
 FrameFunction = Callable[[FrameData, np.ndarray, Arithmetic], FrameResult]
 #: A summary table, region → column → value.
-Table = dict[str, dict[str, float]]
+SummaryTable = dict[str, dict[str, float]]
 #: How a protocol combines its frames into the summary table.
-SummaryFunction = Callable[[Sequence[FrameResult], Arithmetic], Table]
+SummaryFunction = Callable[[Sequence[FrameResult], Arithmetic], SummaryTable]
 
 
-def double_summary(combine: Callable[[Sequence[FrameResult]], Table]) -> SummaryFunction:
+def double_summary(combine: Callable[[Sequence[FrameResult]], SummaryTable]) -> SummaryFunction:
     """A summary the tool takes in double over stored frame values: one for both arithmetics."""
     return lambda frames, arithmetic: combine(frames)
 
