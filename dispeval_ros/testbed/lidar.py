@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dispeval_ros.core.projection import CloudFilter, project_cloud, rectified_projection
-from dispeval_ros.testbed.scene import StereoRig, Vec3, World
+from dispeval_ros.testbed.world import StereoRig, Vec3, World
 
 # Columns: the LiDAR's axes (x forward, y left, z up) in world axes (x right, y up, z forward).
 _LIDAR_AXES = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])

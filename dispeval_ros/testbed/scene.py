@@ -1,733 +1,82 @@
 """Synthetic rectified stereo pairs with exact ground truth, rendered by ray casting.
 
-The world is a ground plane, axis-aligned boxes (vehicles, walls, poles, buildings) and an
-optional far wall. World axes are metres: ``x`` right, ``y`` up (the ground is ``y = 0``), ``z``
-forward. Both cameras look along ``+z`` with identical intrinsics and ``doffs = 0`` (a
-ROS-rectified pair); the right camera sits ``baseline`` metres to the right of the left one.
-
-Every pixel's ray (through the pixel centre, OpenCV convention: pixel ``(x, y)`` is at integer
-coordinates) is intersected exactly with every primitive, so the depth ``Z`` and the disparity
-``f·B/Z`` are exact for both views: where a surface point is visible in both,
-``D_L(x, y) == D_R(x − D_L, y)``. Appearance is a function of the world point alone (textures
-are procedural in world coordinates, shading is Lambertian), so the two images agree up to the
-seeded sensor noise. Rays that see nothing (sky) have depth and disparity ``inf``.
+The public face of the test-bed scene, kept so existing imports work: the world records live
+in :mod:`.world`, ray casting and shading in :mod:`.render`, the demo scene and the driving
+sequence in :mod:`.presets`.
 """
 
-from __future__ import annotations
-
-import math
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
-from functools import lru_cache
-
-import cv2
-import numpy as np
-
-from dispeval_ros.core.camera import Camera
-
-# Surface codes of View.surface: -1 nothing (sky), 0 ground, 1 far wall, 2 + i box i.
-NOTHING = -1
-GROUND = 0
-FAR_WALL = 1
-FIRST_BOX = 2
-
-# Face codes of View.face: the outward normal of the surface seen.
-FACE_NEG_X, FACE_POS_X, FACE_NEG_Y, FACE_POS_Y, FACE_NEG_Z, FACE_POS_Z = range(6)
-_FACE_NORMALS = np.array(
-    [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)], dtype=np.float64
+from dispeval_ros.testbed.presets import (
+    CAMERA_HEIGHT,
+    KITTI_CX,
+    KITTI_CY,
+    KITTI_F,
+    KITTI_HEIGHT,
+    KITTI_WIDTH,
+    NEAREST,
+    driving_setup,
+    driving_world_at,
+    make_driving_sequence,
+    make_scene,
+    scene_setup,
+)
+from dispeval_ros.testbed.render import (
+    FACE_NEG_X,
+    FACE_NEG_Y,
+    FACE_NEG_Z,
+    FACE_POS_X,
+    FACE_POS_Y,
+    FACE_POS_Z,
+    StereoFrame,
+    View,
+    frame_from_views,
+    render_pair,
+    render_stereo,
+    render_view,
+)
+from dispeval_ros.testbed.world import (
+    FAR_WALL,
+    FIRST_BOX,
+    GROUND,
+    NOTHING,
+    Box,
+    LaneLine,
+    StereoRig,
+    Vec3,
+    World,
 )
 
-# Procedural texture: value-noise octaves (metres, before a surface's texture_scale).
-_LATTICE = 256
-_WAVELENGTHS = (0.015, 0.03, 0.06, 0.12, 0.24, 0.48, 0.96)  # ratio 2: a common period
-_LIGHT = np.array((-0.35, 0.8, -0.5)) / np.linalg.norm((-0.35, 0.8, -0.5))
-_AMBIENT = 0.62
-_SKY = 0.82
-
-Vec3 = tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class Box:
-    """An axis-aligned box from corner ``lo`` to corner ``hi`` (world metres).
-
-    ``albedo`` is the mean brightness (0..1), ``contrast`` the texture's amplitude,
-    ``texture_scale`` multiplies the texture's wavelengths, ``stripe_period`` (metres, 0 = none)
-    adds vertical stripes to the side and front faces, ``texture_id`` picks the patch of
-    procedural texture painted on the box (in box coordinates, so a moving box carries its
-    texture along), and ``velocity`` (m/s) moves the box in a sequence (see :meth:`at`).
-    """
-
-    lo: Vec3
-    hi: Vec3
-    albedo: float = 0.5
-    contrast: float = 0.3
-    texture_scale: float = 1.0
-    stripe_period: float = 0.0
-    texture_id: int = 0
-    velocity: Vec3 = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        if not all(a < b for a, b in zip(self.lo, self.hi, strict=True)):
-            raise ValueError(
-                f"box corners must satisfy lo < hi on every axis: {self.lo}, {self.hi}"
-            )
-
-    def at(self, time: float) -> Box:
-        """Return the box moved by ``velocity · time``."""
-        if self.velocity == (0.0, 0.0, 0.0) or time == 0:
-            return self
-        shift = [v * time for v in self.velocity]
-        lo = (self.lo[0] + shift[0], self.lo[1] + shift[1], self.lo[2] + shift[2])
-        hi = (self.hi[0] + shift[0], self.hi[1] + shift[1], self.hi[2] + shift[2])
-        return replace(self, lo=lo, hi=hi)
-
-
-@dataclass(frozen=True)
-class LaneLine:
-    """A painted line on the ground along ``z`` at ``x`` (metres); dashed when ``period > 0``."""
-
-    x: float
-    width: float = 0.15
-    dash: float = 3.0
-    period: float = 0.0
-
-
-@dataclass(frozen=True)
-class World:
-    """What the cameras see: a textured ground plane, boxes and an optional far wall.
-
-    ``ground_bands`` are ``(x_lo, x_hi, albedo)`` strips of the ground with another albedo
-    (sidewalks, a median); ``far_wall_z`` places a textured wall ``z = far_wall_z`` facing the
-    cameras (``None``: no wall, rays above the horizon see sky). ``seed`` chooses the textures.
-    """
-
-    boxes: tuple[Box, ...] = ()
-    ground_albedo: float = 0.45
-    ground_contrast: float = 0.3
-    ground_texture_scale: float = 1.0
-    ground_bands: tuple[tuple[float, float, float], ...] = ()
-    lane_lines: tuple[LaneLine, ...] = ()
-    far_wall_z: float | None = None
-    far_wall_albedo: float = 0.6
-    far_wall_contrast: float = 0.3
-    far_wall_texture_scale: float = 20.0
-    seed: int = 0
-
-    def at(self, time: float) -> World:
-        """Return the world at ``time`` seconds: every box moved by its velocity."""
-        return replace(self, boxes=tuple(box.at(time) for box in self.boxes))
-
-
-@dataclass(frozen=True)
-class StereoRig:
-    """A rectified stereo pair: pinhole intrinsics shared by both views, and its pose.
-
-    ``position`` is the left camera's optical centre (world metres); the right camera is at
-    ``position + (baseline, 0, 0)``. ``velocity`` (m/s) moves the rig in a sequence.
-    """
-
-    width: int
-    height: int
-    f: float
-    cx: float
-    cy: float
-    baseline: float
-    position: Vec3 = (0.0, 1.2, 0.0)
-    velocity: Vec3 = (0.0, 0.0, 0.0)
-
-    @property
-    def camera(self) -> Camera:
-        """The :class:`Camera` record (``doffs = 0``) for depth conversions."""
-        return Camera(f=float(self.f), baseline=float(self.baseline))
-
-    @property
-    def right_position(self) -> Vec3:
-        """The right camera's optical centre."""
-        x, y, z = self.position
-        return (x + self.baseline, y, z)
-
-    def at(self, time: float) -> StereoRig:
-        """Return the rig at ``time`` seconds: moved by ``velocity · time``."""
-        x, y, z = self.position
-        vx, vy, vz = self.velocity
-        return replace(self, position=(x + vx * time, y + vy * time, z + vz * time))
-
-
-@dataclass
-class View:
-    """One rendered camera view: exact depth, what each pixel sees, noiseless radiance.
-
-    ``depth`` is ``Z`` in metres (float64, ``inf`` for sky), ``surface`` the surface code
-    (``NOTHING``, ``GROUND``, ``FAR_WALL`` or ``FIRST_BOX + i``), ``face`` the face code of the
-    outward normal, ``radiance`` the grey level in 0..1 before noise and quantisation.
-    """
-
-    depth: np.ndarray
-    surface: np.ndarray
-    face: np.ndarray
-    radiance: np.ndarray
-
-
-@dataclass
-class StereoFrame:
-    """A rectified stereo pair with exact ground-truth disparities of both views.
-
-    ``left``/``right`` are uint8 H×W grey images; ``gt_left``/``gt_right`` float32 disparities
-    in pixels (``inf`` where the pixel sees nothing); ``stamp`` in seconds.
-    """
-
-    left: np.ndarray
-    right: np.ndarray
-    gt_left: np.ndarray
-    gt_right: np.ndarray
-    camera: Camera
-    stamp: float = 0.0
-
-
-# --------------------------------------------------------------------------------------------
-# Ray casting
-
-
-def _slab(lo: float, hi: float, origin: float, offsets: np.ndarray, f: float) -> tuple:
-    """Entry and exit ray parameters of the slab ``lo ≤ p ≤ hi`` for rays ``p = o + t·off/f``.
-
-    The ray parameter ``t`` is the depth ``Z`` because every ray has unit ``z`` component.
-    """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = (lo - origin) * f / offsets
-        t2 = (hi - origin) * f / offsets
-    near = np.minimum(t1, t2)
-    far = np.maximum(t1, t2)
-    parallel = offsets == 0
-    if parallel.any():
-        inside = lo <= origin <= hi
-        near[parallel] = -math.inf if inside else math.inf
-        far[parallel] = math.inf if inside else -math.inf
-    return near, far
-
-
-def _cast(world: World, origin: Vec3, rig: StereoRig) -> tuple[np.ndarray, ...]:
-    """Nearest intersection per pixel: depth (float64), surface code and face code."""
-    height, width, f = rig.height, rig.width, float(rig.f)
-    ox, oy, oz = (float(v) for v in origin)
-    du = np.arange(width, dtype=np.float64) - rig.cx  # ray x-slope = du / f
-    dv = -(np.arange(height, dtype=np.float64) - rig.cy)  # ray y-slope = dv / f (y up)
-
-    depth = np.full((height, width), np.inf)
-    surface = np.full((height, width), NOTHING, dtype=np.int32)
-    face = np.full((height, width), FACE_NEG_Z, dtype=np.int8)
-
-    if world.far_wall_z is not None and world.far_wall_z > oz:
-        depth[:] = world.far_wall_z - oz
-        surface[:] = FAR_WALL
-
-    if oy > 0:  # ground y = 0 below the horizon: Z = f·h / (v − cy)
-        below = dv < 0
-        t_rows = np.full(height, np.inf)
-        t_rows[below] = oy * f / -dv[below]
-        hit = t_rows[:, None] < depth
-        depth = np.where(hit, t_rows[:, None], depth)
-        surface[hit] = GROUND
-        face[hit] = FACE_POS_Y
-
-    face_x = np.where(du > 0, FACE_NEG_X, FACE_POS_X).astype(np.int8)
-    face_y = np.where(dv > 0, FACE_NEG_Y, FACE_POS_Y).astype(np.int8)
-    for index, box in enumerate(world.boxes):
-        z_near, z_far = box.lo[2] - oz, box.hi[2] - oz
-        if z_far <= 0:
-            continue
-        x_near, x_far = _slab(box.lo[0], box.hi[0], ox, du, f)
-        y_near, y_far = _slab(box.lo[1], box.hi[1], oy, dv, f)
-        col_near, col_far = np.maximum(x_near, z_near), np.minimum(x_far, z_far)
-        cols = np.flatnonzero((col_near <= col_far) & (col_far > 0))
-        rows = np.flatnonzero((y_near <= y_far) & (y_far > 0))
-        if cols.size == 0 or rows.size == 0:
-            continue
-        c0, c1, r0, r1 = cols[0], cols[-1] + 1, rows[0], rows[-1] + 1
-        cn, cf = col_near[None, c0:c1], col_far[None, c0:c1]
-        yn, yf = y_near[r0:r1, None], y_far[r0:r1, None]
-        t_in = np.maximum(cn, yn)
-        sub = depth[r0:r1, c0:c1]
-        hit = (t_in <= np.minimum(cf, yf)) & (t_in > 0) & (t_in < sub)
-        if not hit.any():
-            continue
-        sub[hit] = t_in[hit]
-        surface[r0:r1, c0:c1][hit] = FIRST_BOX + index
-        entered = np.where(
-            yn >= cn,
-            face_y[r0:r1, None],
-            np.where(x_near[None, c0:c1] >= z_near, face_x[None, c0:c1], np.int8(FACE_NEG_Z)),
-        )
-        face[r0:r1, c0:c1][hit] = entered[hit]
-    return depth, surface, face
-
-
-# --------------------------------------------------------------------------------------------
-# Appearance
-
-
-@lru_cache(maxsize=8)
-def _lattices(seed: int) -> tuple[np.ndarray, ...]:
-    """One random value lattice per texture octave (uniform in [-1, 1]), from the seed."""
-    rng = np.random.default_rng([seed, 0x7E57])
-    return tuple(
-        rng.uniform(-1.0, 1.0, (_LATTICE, _LATTICE)).astype(np.float32) for _ in _WAVELENGTHS
-    )
-
-
-_GROUND_TEXTURE, _FAR_WALL_TEXTURE = -1, -2
-
-
-def _patch_offsets(seed: int, texture_ids: np.ndarray) -> np.ndarray:
-    """Lattice offsets (n × 6 faces × 2) of each texture id: a splitmix64 hash, vectorised."""
-    keys = (texture_ids.astype(np.int64).astype(np.uint64)[:, None] * np.uint64(8)) + np.arange(
-        6, dtype=np.uint64
-    )
-    with np.errstate(over="ignore"):
-        h = keys ^ (np.uint64(seed & 0xFFFFFFFF) * np.uint64(0x9E3779B97F4A7C15))
-        h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        h = h ^ (h >> np.uint64(31))
-    low = (h & np.uint64(0xFFFF)).astype(np.float32)
-    high = ((h >> np.uint64(16)) & np.uint64(0xFFFF)).astype(np.float32)
-    return np.stack([low, high], axis=-1) * np.float32(_LATTICE / 65536.0)
-
-
-def _surface_table(world: World) -> dict[str, np.ndarray]:
-    """Per surface code (shifted by +1, so index 0 is 'nothing'): material properties."""
-    boxes = world.boxes
-    n = FIRST_BOX + len(boxes) + 1
-    albedo = np.full(n, _SKY, dtype=np.float32)
-    contrast = np.zeros(n, dtype=np.float32)
-    scale = np.ones(n, dtype=np.float32)
-    stripes = np.zeros(n, dtype=np.float32)
-    origin = np.zeros((n, 3), dtype=np.float64)  # texture coordinates are relative to this
-    texture_ids = np.zeros(n, dtype=np.int64)
-    albedo[GROUND + 1], contrast[GROUND + 1] = world.ground_albedo, world.ground_contrast
-    scale[GROUND + 1] = world.ground_texture_scale
-    texture_ids[GROUND + 1] = _GROUND_TEXTURE
-    albedo[FAR_WALL + 1], contrast[FAR_WALL + 1] = world.far_wall_albedo, world.far_wall_contrast
-    scale[FAR_WALL + 1] = world.far_wall_texture_scale
-    texture_ids[FAR_WALL + 1] = _FAR_WALL_TEXTURE
-    for i, box in enumerate(boxes):
-        k = FIRST_BOX + i + 1
-        albedo[k], contrast[k], scale[k] = box.albedo, box.contrast, box.texture_scale
-        stripes[k], origin[k], texture_ids[k] = box.stripe_period, box.lo, box.texture_id
-    return {
-        "albedo": albedo,
-        "contrast": contrast,
-        "scale": scale,
-        "stripes": stripes,
-        "origin": origin,
-        "offsets": _patch_offsets(world.seed, texture_ids).reshape(n * 6, 2),
-    }
-
-
-def _soft_band(distance: np.ndarray, half_width: float, footprint: np.ndarray) -> np.ndarray:
-    """Anti-aliased coverage of a band ``|distance| ≤ half_width`` by a pixel of that footprint."""
-    return np.clip(0.5 + (half_width - np.abs(distance)) / footprint, 0.0, 1.0)
-
-
-def _shade(world: World, origin: Vec3, rig: StereoRig, hits: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Radiance (0..1, float32) of every pixel: textured albedo times Lambertian shading."""
-    depth, surface, face = hits
-    height, width, f = rig.height, rig.width, float(rig.f)
-    ox, oy, oz = origin
-    table = _surface_table(world)
-    code = surface + 1
-    seen = code != 0
-    t = np.where(seen, depth, 0.0)
-    sx = ((np.arange(width) - rig.cx) / f)[None, :]
-    sy = (-(np.arange(height) - rig.cy) / f)[:, None]
-    X = ox + t * sx  # world coordinates of the surface point (float64)
-    Y = oy + t * sy
-    Z = oz + t
-
-    # Face-local texture coordinates (s, r) in metres, relative to the surface's origin and
-    # reduced modulo the texture's period in float64, so float32 suffices from here on.
-    axis = face // 2
-    local = table["origin"][code]
-    scale = table["scale"][code]
-    period = np.float64(_LATTICE * _WAVELENGTHS[-1]) * scale
-    s = np.where(axis == 0, Z - local[..., 2], X - local[..., 0])
-    r = np.where(axis == 1, Z - local[..., 2], Y - local[..., 1])
-    s = np.mod(s, period).astype(np.float32)
-    r = np.mod(r, period).astype(np.float32)
-
-    # Pixel footprint on the surface (metres): Z/f stretched by the obliquity of the surface.
-    # Horizontal faces (the ground) are stretched along image columns, where both views sample
-    # the same rows, so they take the geometric mean of both directions: less blur far away.
-    norm = np.sqrt(1.0 + sx * sx + sy * sy)
-    slope = np.where(axis == 0, np.abs(sx), np.where(axis == 1, np.sqrt(np.abs(sy) * norm), 1.0))
-    cosine = np.maximum(slope / norm, 0.05)
-    footprint = np.maximum(t * norm / (f * cosine), 1e-6).astype(np.float32)
-
-    inv_scale = np.float32(1.0) / scale
-    rel_footprint = footprint * inv_scale
-    off = table["offsets"][code * 6 + face]
-    total = np.zeros((height, width), dtype=np.float32)
-    weights = np.zeros((height, width), dtype=np.float32)
-    for k, (wavelength, lattice) in enumerate(
-        zip(_WAVELENGTHS, _lattices(world.seed), strict=True)
-    ):
-        freq = inv_scale * np.float32(1.0 / wavelength)
-        u = np.mod(s * freq + off[..., 0] + np.float32(17 * k), _LATTICE, dtype=np.float32)
-        v = np.mod(r * freq + off[..., 1] + np.float32(31 * k), _LATTICE, dtype=np.float32)
-        noise = cv2.remap(lattice, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-        # Fade an octave out as it approaches the Nyquist limit of the pixel grid.
-        weight = np.clip((np.float32(wavelength) / rel_footprint - 2.0) * 0.5, 0.0, 1.0)
-        total += weight * noise
-        weights += weight * weight
-    texture = total / np.sqrt(np.maximum(weights, np.float32(0.25))) * np.float32(2.2)
-
-    stripe_period = table["stripes"][code]
-    striped = stripe_period > 0
-    if striped.any():
-        stripe = np.where(striped, stripe_period, np.float32(1.0))
-        wave = np.sin(s * np.float32(2 * np.pi) / stripe + np.float32(0.7) * texture)
-        sharp = np.clip(wave * stripe / (np.float32(2 * np.pi) * footprint), -1.0, 1.0)
-        fade = np.clip((stripe / footprint - 4.0) * 0.25, 0.0, 1.0) * (axis != 1)
-        texture = np.where(striped, 0.6 * texture + 0.9 * sharp * fade, texture)
-
-    albedo = table["albedo"][code]
-    ground = code == GROUND + 1
-    for x_lo, x_hi, band_albedo in world.ground_bands:
-        inside = ground & (x_lo <= X) & (x_hi > X)
-        albedo = np.where(inside, np.float32(band_albedo), albedo)
-    intensity = albedo + table["contrast"][code] * texture * np.float32(0.5)
-    if world.lane_lines:
-        Xg, Zg = X.astype(np.float32), Z.astype(np.float32)
-        for line in world.lane_lines:
-            cover = _soft_band(Xg - np.float32(line.x), line.width / 2, footprint)
-            if line.period > 0:
-                phase = np.mod(Zg, np.float32(line.period)) - np.float32(line.dash / 2)
-                cover = cover * _soft_band(phase, line.dash / 2, footprint)
-            paint = np.float32(0.88) + np.float32(0.05) * texture
-            intensity = np.where(ground, intensity + cover * (paint - intensity), intensity)
-
-    lambert = np.clip(_FACE_NORMALS @ _LIGHT, 0.0, None)
-    shade = (_AMBIENT + (1.0 - _AMBIENT) * lambert).astype(np.float32)[face]
-    radiance = np.where(seen, intensity * shade, np.float32(_SKY))
-    return np.clip(radiance, 0.0, 1.0).astype(np.float32)
-
-
-def render_view(world: World, origin: Vec3, rig: StereoRig) -> View:
-    """Ray-cast one camera of ``rig`` placed at ``origin`` (its intrinsics, any position).
-
-    A box that contains the camera is not seen (rays leave it through its inside faces).
-    """
-    depth, surface, face = _cast(world, origin, rig)
-    radiance = _shade(world, origin, rig, (depth, surface, face))
-    return View(depth=depth, surface=surface, face=face, radiance=radiance)
-
-
-def render_pair(world: World, rig: StereoRig) -> tuple[View, View]:
-    """Render the left and right views of ``rig`` (at its current position)."""
-    return render_view(world, rig.position, rig), render_view(world, rig.right_position, rig)
-
-
-def _disparity(depth: np.ndarray, fb: float) -> np.ndarray:
-    with np.errstate(divide="ignore"):
-        disparity = np.where(np.isfinite(depth), fb / depth, np.inf)
-    return disparity.astype(np.float32)
-
-
-def _expose(radiance: np.ndarray, noise_sigma: float, rng: np.random.Generator) -> np.ndarray:
-    grey = radiance * np.float32(255.0)
-    if noise_sigma > 0:
-        grey = grey + rng.standard_normal(radiance.shape, dtype=np.float32) * noise_sigma
-    return np.clip(np.rint(grey), 0, 255).astype(np.uint8)
-
-
-def frame_from_views(
-    left: View,
-    right: View,
-    rig: StereoRig,
-    *,
-    stamp: float = 0.0,
-    noise_sigma: float = 1.5,
-    noise_seed: int | Sequence[int] = 0,
-) -> StereoFrame:
-    """Quantise two views into a :class:`StereoFrame` with seeded Gaussian sensor noise."""
-    rng_left, rng_right = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(noise_seed).spawn(2)
-    )
-    fb = float(rig.f) * float(rig.baseline)
-    return StereoFrame(
-        left=_expose(left.radiance, noise_sigma, rng_left),
-        right=_expose(right.radiance, noise_sigma, rng_right),
-        gt_left=_disparity(left.depth, fb),
-        gt_right=_disparity(right.depth, fb),
-        camera=rig.camera,
-        stamp=float(stamp),
-    )
-
-
-def render_stereo(
-    world: World,
-    rig: StereoRig,
-    *,
-    stamp: float = 0.0,
-    noise_sigma: float = 1.5,
-    noise_seed: int | Sequence[int] = 0,
-) -> StereoFrame:
-    """Render ``world`` through ``rig`` into a :class:`StereoFrame` (images and exact GT)."""
-    left, right = render_pair(world, rig)
-    return frame_from_views(
-        left, right, rig, stamp=stamp, noise_sigma=noise_sigma, noise_seed=noise_seed
-    )
-
-
-# --------------------------------------------------------------------------------------------
-# The demo scene
-
-
-def scene_setup(
-    width: int = 640, height: int = 400, seed: int = 0, baseline: float = 0.12
-) -> tuple[World, StereoRig]:
-    """World and rig of :func:`make_scene`: boxes from 1.5 m to 16 m before a wall at 30 m.
-
-    The focal length is ``0.9·width``, so the nearest surface (1.5 m) has a disparity of
-    ``0.9·width·baseline/1.5`` (46 px at 640 wide with the default 0.12 m baseline).
-    """
-    rng = np.random.default_rng([seed, 0x5CE7E])
-
-    def jitter(amount: float) -> float:
-        return float(rng.uniform(-amount, amount))
-
-    def box(lo: Vec3, hi: Vec3, *, stripe_period: float = 0.0, texture_scale: float = 1.0) -> Box:
-        return Box(
-            lo=lo,
-            hi=hi,
-            albedo=0.35 + 0.35 * float(rng.random()),
-            contrast=0.3 + 0.1 * float(rng.random()),
-            texture_scale=texture_scale,
-            stripe_period=stripe_period,
-            texture_id=int(rng.integers(1 << 30)),
-        )
-
-    a, b, c = jitter(0.1), jitter(0.2), jitter(0.3)
-    boxes = (
-        # A crate close to the camera on the left (the nearest surface, 1.5 m).
-        box((-0.95 + a, 0.0, 1.5), (-0.3 + a, 0.9 + jitter(0.1), 2.1)),
-        # A small crate partly hiding the van behind it.
-        box((0.45 + b, 0.0, 2.8), (1.0 + b, 0.6 + jitter(0.05), 3.3)),
-        # A van-sized box whose left side face is seen obliquely.
-        box((0.25, 0.0, 4.2 + b), (2.1, 1.6 + jitter(0.1), 8.0 + b), stripe_period=0.35),
-        # A pole in front of a far block at 14 m.
-        box((-1.55 + c, 0.0, 6.0), (-1.4 + c, 3.0, 6.15)),
-        box((-4.5, 0.0, 14.0 + c), (-1.2, 3.0 + jitter(0.3), 16.0 + c), texture_scale=1.5),
-    )
-    world = World(
-        boxes=boxes,
-        ground_albedo=0.42,
-        ground_contrast=0.32,
-        far_wall_z=30.0,
-        far_wall_texture_scale=2.5,
-        seed=seed,
-    )
-    rig = StereoRig(
-        width=width,
-        height=height,
-        f=0.9 * width,
-        cx=(width - 1) / 2,
-        cy=(height - 1) / 2,
-        baseline=baseline,
-        position=(-baseline / 2, 1.1, 0.0),
-    )
-    return world, rig
-
-
-def make_scene(
-    width: int = 640, height: int = 400, seed: int = 0, baseline: float = 0.12
-) -> StereoFrame:
-    """Render a small static scene: textured ground, five boxes at 1.5–14 m, a wall at 30 m.
-
-    Every pixel has finite ground truth; boxes overlap in view, so there are occlusions and
-    depth discontinuities. Disparities stay below ``0.072·width`` px (46 px at 640 wide).
-    """
-    world, rig = scene_setup(width, height, seed, baseline)
-    return render_stereo(world, rig, noise_seed=[seed, 0])
-
-
-# --------------------------------------------------------------------------------------------
-# The driving sequence
-
-KITTI_WIDTH, KITTI_HEIGHT = 1242, 375
-KITTI_F, KITTI_CX, KITTI_CY = 721.5377, 609.5593, 172.854
-CAMERA_HEIGHT = 1.65
-NEAREST = 4.0  # metres: nothing in front comes closer (97 px disparity at KITTI size)
-_BLOCK = 50.0  # metres of roadside generated from one seed block
-_AHEAD = 300.0  # roadside generated this far ahead of the camera
-_FAR_WALL = 450.0  # the background, kept this far ahead of the camera (like the sky: fixed)
-
-# Road across x (metres from the rig's centre): same-direction lanes at 0 and +3.5, a median,
-# an oncoming lane at -6.5, sidewalks beyond the kerbs.
-_LANE_LINES = (
-    LaneLine(-1.75, width=0.15),
-    LaneLine(1.75, dash=3.0, period=9.0),
-    LaneLine(5.25, width=0.2),
-    LaneLine(-4.75, width=0.15),
-    LaneLine(-8.25, width=0.2),
-)
-_BANDS = ((-4.75, -1.75, 0.52), (5.35, 1e9, 0.58), (-1e9, -8.35, 0.58))
-
-
-def driving_setup(
-    width: int = 620, height: int = 188, fps: float = 10.0, seed: int = 0, baseline: float = 0.54
-) -> tuple[World, StereoRig]:
-    """World (at time 0, boxes with velocities) and rig of :func:`make_driving_sequence`.
-
-    The world holds the traffic only; the static roadside is laid out in 50 m blocks, each
-    from its own seed, and added per frame by :func:`driving_world_at`, so a sequence of any
-    length stays cheap. Only vehicles move; they never come closer than ``NEAREST`` metres.
-    """
-    del fps  # the layout does not depend on the frame rate
-    rng = np.random.default_rng([seed, 0xD21E])
-    speed = float(rng.uniform(8.0, 12.0))
-    f = KITTI_F * width / KITTI_WIDTH
-    rig = StereoRig(
-        width=width,
-        height=height,
-        f=f,
-        cx=KITTI_CX * width / KITTI_WIDTH,
-        cy=KITTI_CY * height / KITTI_HEIGHT,
-        baseline=baseline,
-        position=(-baseline / 2, CAMERA_HEIGHT, 0.0),
-        velocity=(0.0, 0.0, speed),
-    )
-    world = World(
-        boxes=_vehicles(rng, speed),
-        ground_albedo=0.36,
-        ground_contrast=0.34,
-        ground_bands=_BANDS,
-        lane_lines=_LANE_LINES,
-        far_wall_z=_FAR_WALL,
-        far_wall_albedo=0.7,
-        far_wall_texture_scale=60.0,
-        seed=seed,
-    )
-    return world, rig
-
-
-def _car(x: float, z: float, rng: np.random.Generator, velocity: Vec3) -> Box:
-    """Make a vehicle body centred on ``x``; ``z`` is its face nearest to the camera."""
-    width = float(rng.uniform(1.7, 2.0))
-    length = float(rng.uniform(3.8, 4.8))
-    height = float(rng.uniform(1.4, 1.9))
-    return Box(
-        lo=(x - width / 2, 0.25, z),
-        hi=(x + width / 2, height, z + length),
-        albedo=float(rng.uniform(0.25, 0.75)),
-        contrast=float(rng.uniform(0.25, 0.4)),
-        texture_id=int(rng.integers(1 << 30)),
-        velocity=velocity,
-    )
-
-
-def _vehicles(rng: np.random.Generator, speed: float) -> tuple[Box, ...]:
-    """Traffic: a near lead car, cars ahead in the right lane, oncoming cars, all ≥ NEAREST."""
-    cars: list[Box] = []
-    # Same direction: never slower than the rig, so they never come closer than at t = 0.
-    lead_speed = speed + float(rng.uniform(0.3, 1.5))
-    cars.append(_car(0.0, float(rng.uniform(NEAREST, 5.0)), rng, (0, 0, lead_speed)))
-    cars.append(_car(0.0, float(rng.uniform(25.0, 40.0)), rng, (0, 0, lead_speed)))
-    right_speed = speed + float(rng.uniform(1.0, 4.0))
-    z = float(rng.uniform(7.0, 12.0))
-    for _ in range(3):
-        cars.append(_car(3.5, z, rng, (0, 0, right_speed)))
-        z += float(rng.uniform(12.0, 30.0))
-    # Oncoming, in the far lane beyond the median: they pass at 6 m to the left (d ≤ 62 px).
-    oncoming = -float(rng.uniform(8.0, 13.0))
-    z = float(rng.uniform(60.0, 90.0))
-    for _ in range(6):
-        cars.append(_car(-6.5, z, rng, (0, 0, oncoming)))
-        z += float(rng.uniform(20.0, 50.0))
-    return tuple(cars)
-
-
-@lru_cache(maxsize=256)
-def _roadside(seed: int, block: int) -> tuple[Box, ...]:
-    """Lay out the static boxes beside the road for ``z`` in ``[50·block, 50·(block + 1))``."""
-    rng = np.random.default_rng([seed, 0x51DE, block + 1_000_000])
-    z_start = block * _BLOCK
-    boxes: list[Box] = []
-    for side in (-1.0, 1.0):
-        kerb = 8.35 if side < 0 else 5.35
-        # Buildings and walls at varied setbacks, with gaps.
-        z = z_start + float(rng.uniform(0.0, 6.0))
-        while z < z_start + _BLOCK:
-            length = float(rng.uniform(6.0, 22.0))
-            if rng.random() < 0.25:  # a low wall close to the sidewalk
-                near = kerb + float(rng.uniform(0.8, 2.0))
-                far, top, period = near + 0.4, float(rng.uniform(1.0, 2.2)), 0.0
-            else:
-                near = kerb + float(rng.uniform(2.0, 9.0))
-                far = near + float(rng.uniform(6.0, 15.0))
-                top, period = float(rng.uniform(4.0, 16.0)), float(rng.uniform(0.0, 1.2))
-            x0, x1 = (-far, -near) if side < 0 else (near, far)
-            boxes.append(
-                Box(
-                    lo=(x0, 0.0, z),
-                    hi=(x1, top, z + length),
-                    albedo=float(rng.uniform(0.35, 0.8)),
-                    contrast=float(rng.uniform(0.25, 0.4)),
-                    texture_scale=float(rng.uniform(1.0, 3.0)),
-                    stripe_period=period if period > 0.5 else 0.0,
-                    texture_id=int(rng.integers(1 << 30)),
-                )
-            )
-            z += length + float(rng.uniform(1.0, 10.0))
-        # Poles at the kerb, and now and then a parked car.
-        z = z_start + float(rng.uniform(0.0, 25.0))
-        while z < z_start + _BLOCK:
-            x = side * (kerb + 0.5)
-            boxes.append(
-                Box(
-                    lo=(x - 0.08, 0.0, z),
-                    hi=(x + 0.08, float(rng.uniform(4.0, 8.0)), z + 0.16),
-                    albedo=float(rng.uniform(0.3, 0.8)),
-                    contrast=0.35,
-                    texture_id=int(rng.integers(1 << 30)),
-                )
-            )
-            z += float(rng.uniform(18.0, 35.0))
-        if side > 0 and rng.random() < 0.6:
-            z = z_start + float(rng.uniform(0.0, _BLOCK - 5.0))
-            boxes.append(_car(kerb + 1.1, z, rng, (0.0, 0.0, 0.0)))
-    return tuple(boxes)
-
-
-def driving_world_at(world: World, rig: StereoRig, time: float) -> tuple[World, StereoRig]:
-    """Return the driving world and rig at ``time``: traffic, visible roadside, far wall."""
-    moved_rig = rig.at(time)
-    z = moved_rig.position[2]
-    first, last = math.floor((z - _BLOCK) / _BLOCK), math.floor((z + _AHEAD) / _BLOCK)
-    roadside = tuple(b for k in range(first, last + 1) for b in _roadside(world.seed, k))
-    traffic = tuple(
-        b for b in world.at(time).boxes if b.hi[2] > z and b.lo[2] < z + _AHEAD + _BLOCK
-    )
-    return replace(world, boxes=traffic + roadside, far_wall_z=z + _FAR_WALL), moved_rig
-
-
-def make_driving_sequence(
-    n_frames: int = 60,
-    width: int = 620,
-    height: int = 188,
-    fps: float = 10.0,
-    seed: int = 0,
-    baseline: float = 0.54,
-) -> Iterator[StereoFrame]:
-    """Render a KITTI-like drive: the rig moves along a road with traffic and buildings.
-
-    The camera (``f = 721.5·width/1242``, height 1.65 m, ``baseline``) drives at 8–12 m/s;
-    frame ``i`` has ``stamp = i / fps``. Frames are rendered lazily and depend only on
-    ``seed``, ``i / fps`` and the image size, not on ``n_frames``. The nearest surface is
-    ``NEAREST`` metres away: at most ``0.078·width`` px disparity (97 px at 1242 wide).
-    """
-    world, rig = driving_setup(width, height, fps, seed, baseline)
-    for i in range(n_frames):
-        time = i / fps
-        world_t, rig_t = driving_world_at(world, rig, time)
-        yield render_stereo(world_t, rig_t, stamp=time, noise_seed=[seed, i])
+__all__ = [
+    "CAMERA_HEIGHT",
+    "FACE_NEG_X",
+    "FACE_NEG_Y",
+    "FACE_NEG_Z",
+    "FACE_POS_X",
+    "FACE_POS_Y",
+    "FACE_POS_Z",
+    "FAR_WALL",
+    "FIRST_BOX",
+    "GROUND",
+    "KITTI_CX",
+    "KITTI_CY",
+    "KITTI_F",
+    "KITTI_HEIGHT",
+    "KITTI_WIDTH",
+    "NEAREST",
+    "NOTHING",
+    "Box",
+    "LaneLine",
+    "StereoFrame",
+    "StereoRig",
+    "Vec3",
+    "View",
+    "World",
+    "driving_setup",
+    "driving_world_at",
+    "frame_from_views",
+    "make_driving_sequence",
+    "make_scene",
+    "render_pair",
+    "render_stereo",
+    "render_view",
+    "scene_setup",
+]
