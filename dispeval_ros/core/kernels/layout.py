@@ -9,7 +9,10 @@ kernels write where the registry says).
 
 from __future__ import annotations
 
-from dispeval_ros.core.registry import MAX_THRESHOLDS, SUM_FIELDS, field_index
+from dispeval_ros.core import registry
+from dispeval_ros.core.registry import SUM_FIELDS, field_index
+
+MAX_THRESHOLDS = registry.MAX_THRESHOLDS
 
 FIELD_N = field_index("n")
 FIELD_VALID = field_index("n_valid")
@@ -34,26 +37,3 @@ FIELD_SUM_VPE = field_index("sum_vpe")
 FIELD_N_LRC = field_index("n_lrc")
 FIELD_LRC = field_index("lrc_count")
 FIELD_COUNT = len(SUM_FIELDS)
-
-__all__ = [
-    "FIELD_BAD",
-    "FIELD_BMPRE",
-    "FIELD_COUNT",
-    "FIELD_D1",
-    "FIELD_EVAL",
-    "FIELD_LRC",
-    "FIELD_N",
-    "FIELD_N_LRC",
-    "FIELD_N_VPE",
-    "FIELD_SUM_E",
-    "FIELD_SUM_E2",
-    "FIELD_SUM_EZ",
-    "FIELD_SUM_EZ2",
-    "FIELD_SUM_IZ2",
-    "FIELD_SUM_REL",
-    "FIELD_SUM_RELZ",
-    "FIELD_SUM_VPE",
-    "FIELD_SZE",
-    "FIELD_VALID",
-    "MAX_THRESHOLDS",
-]
