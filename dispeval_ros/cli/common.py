@@ -9,7 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-from dispeval_ros.core import CRITERION_SETS, DEFAULT_CRITERIA, POLICIES, Camera, Evaluator, Scores
+from dispeval_ros.core import (
+    CRITERION_SETS,
+    DEFAULT_CRITERIA,
+    POLICIES,
+    Camera,
+    Evaluator,
+    Scores,
+    registry,
+)
 from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
 from dispeval_ros.core.objectives import (
     DEFAULT_OBJECTIVES_TEXT,
@@ -42,8 +50,7 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=None,
         metavar="M",
-        help="measures (default: all): bmp bmp_count bad_X mae mse rmse mre sze sze_mean bmpre "
-        "bmpre_mean d1 aNN density",
+        help=f"measures (default: all): {registry.listing()}",
     )
     group.add_argument(
         "--missing",

@@ -17,27 +17,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import kernels as k
+from dispeval_ros.core import registry
 from dispeval_ros.errors import ConfigurationError
 
 DEFAULT_BAD_THRESHOLDS = (0.5, 2.0, 4.0)
 DEFAULT_QUANTILES = (50, 90, 95, 99)
-DEFAULT_MEASURES = (
-    "bmp",
-    "bmp_count",
-    *(f"bad_{t:g}" for t in DEFAULT_BAD_THRESHOLDS),
-    "mae",
-    "mse",
-    "rmse",
-    "mre",
-    "sze",
-    "sze_mean",
-    "bmpre",
-    "bmpre_mean",
-    "d1",
-    *(f"a{q}" for q in DEFAULT_QUANTILES),
-    "density",
-)
-HIGHER_IS_BETTER = ("density",)
+
+
+def _expanded(name: str) -> tuple[str, ...]:
+    """A registry name as default measures: the families at their default thresholds / levels."""
+    if name == "bad_X":
+        return tuple(f"bad_{t:g}" for t in DEFAULT_BAD_THRESHOLDS)
+    if name == "aNN":
+        return tuple(f"a{q}" for q in DEFAULT_QUANTILES)
+    return (name,)
+
+
+DEFAULT_MEASURES = tuple(n for name in registry.names(default=True) for n in _expanded(name))
+HIGHER_IS_BETTER = registry.names(direction=registry.HIGHER)
 COUNT_MEASURES = ("n", "bmp_count")
 """Values that count points: integers wherever they are written out."""
 _BAD = re.compile(r"^bad_(\d+(?:\.\d+)?)$")
@@ -59,29 +56,6 @@ def quantile_level(name: str) -> float | None:
     return level if 0 < level < 100 else None
 
 
-_UNITS = {
-    "n": "points",
-    "bmp": "%",
-    "bmp_count": "points",
-    "d1": "%",
-    "mae": "px",
-    "mse": "px²",
-    "rmse": "px",
-    "mre": "e/D",
-    "sze": "m",
-    "sze_mean": "m",
-    "bmpre": "Σ e/D",
-    "bmpre_mean": "e/D",
-    "density": "share",
-    "mae_z": "m",
-    "rmse_z": "m",
-    "absrel_z": "ratio",
-    "irmse": "1/km",
-    "vpe": "grey levels",
-    "lrc": "%",
-}
-
-
 def measure_unit(name: str, relative: bool = False) -> str:
     """The unit a measure's values are in, for tables, plots and reports ("" if none known).
 
@@ -93,7 +67,8 @@ def measure_unit(name: str, relative: bool = False) -> str:
         return "%"
     if quantile_level(name) is not None:
         return "px"
-    return _UNITS.get(name, "")
+    measure = registry.BY_NAME.get(name)
+    return measure.unit if measure is not None else ""
 
 
 def parse_measures(names: Iterable[str] | None) -> tuple[str, ...]:
@@ -136,30 +111,10 @@ def thresholds_for(measures: Sequence[str], delta: float) -> np.ndarray:
 
 
 FIELDS = k.FIELD_COUNT
-SUM_FIELDS = (
-    "n",
-    "n_valid",
-    "n_eval",
-    "sum_e",
-    "sum_e2",
-    "sum_rel",
-    "sze",
-    "bmpre",
-    "d1_count",
-    *(f"bad_count_{i}" for i in range(k.MAX_THRESHOLDS)),
-    "sum_ez",
-    "sum_ez2",
-    "sum_relz",
-    "sum_iz2",
-    "n_vpe",
-    "sum_vpe",
-    "n_lrc",
-    "lrc_count",
-)
-"""Names of the accumulator columns (``bad_count_0`` is at δ, the others at the bad-x thresholds;
-then the depth-domain sums, then the ground-truth-free sums)."""
+SUM_FIELDS = registry.SUM_FIELDS
+"""Names of the accumulator columns (declared in :mod:`dispeval_ros.core.registry`)."""
 
-GT_FREE_MEASURES = ("vpe", "lrc")
+GT_FREE_MEASURES = registry.names(needs=registry.NEEDS_IMAGES)
 """Measures that need no ground truth (view-prediction error, left-right inconsistency): scored
 on the ``gtfree:`` criteria only, never objectives beside GT measures unless asked."""
 GT_FREE_PREFIX = "gtfree:"
@@ -172,18 +127,19 @@ def applies(measure: str, criterion: str) -> bool:
     GT-free measures on ``gtfree:`` criteria only, GT measures on GT criteria only
     (``density`` and ``n`` on both).
     """
-    if measure in ("n", "density"):
+    needs = registry.BY_NAME[measure].needs if measure in registry.BY_NAME else registry.NEEDS_GT
+    if needs == registry.NEEDS_NONE:
         return True
-    return (measure in GT_FREE_MEASURES) == criterion.startswith(GT_FREE_PREFIX)
+    return (needs == registry.NEEDS_IMAGES) == criterion.startswith(GT_FREE_PREFIX)
 
 
-DEPTH_MEASURES = ("mae_z", "rmse_z", "absrel_z", "irmse")
+DEPTH_MEASURES = registry.names(family="depth")
 """Depth-domain measures (metres, or the camera's unit; ``irmse`` in 1/km as KITTI's depth
 devkit). Not in the defaults of disparity GT (they add columns to every table); the default
 for LiDAR GT, whose users think in metres."""
 
 
-DEPTH_FIELDS = (k.FIELD_SZE, k.FIELD_SUM_EZ, k.FIELD_SUM_EZ2, k.FIELD_SUM_RELZ, k.FIELD_SUM_IZ2)
+DEPTH_FIELDS = tuple(registry.field_index(name) for name in registry.CAMERA_FIELDS)
 """The sums that need the camera (f·B): SZE and the depth-domain measures."""
 
 
@@ -199,31 +155,26 @@ def _mean(field: int, scale: float = 1.0) -> Callable[[_Sums], float]:
     return lambda sums: _ratio(sums[field], sums[k.FIELD_EVAL], scale)
 
 
-def _total(field: int) -> Callable[[_Sums], float]:
-    return lambda sums: float(sums[field])
+def _from_registry(measure: registry.Measure) -> Callable[[_Sums], float]:
+    """The derivation the registry declares for ``measure`` (a fixed-field one)."""
+    assert measure.num is not None
+    num = registry.field_index(measure.num)
+    if measure.kind == registry.TOTAL:
+        return lambda sums: float(sums[num])
+    assert measure.den is not None
+    den = registry.field_index(measure.den)
+    scale = measure.scale
+    if measure.kind == registry.SQRT_RATIO:
+        return lambda sums: scale * math.sqrt(_ratio(sums[num], sums[den]))
+    return lambda sums: _ratio(sums[num], sums[den], scale)
 
 
 _FROM_SUMS: dict[str, Callable[[_Sums], float]] = {
-    "bmp": _mean(k.FIELD_BAD, 100.0),
-    "bmp_count": _total(k.FIELD_BAD),
-    "mae": _mean(k.FIELD_SUM_E),
-    "mse": _mean(k.FIELD_SUM_E2),
-    "rmse": lambda sums: math.sqrt(_ratio(sums[k.FIELD_SUM_E2], sums[k.FIELD_EVAL])),
-    "mre": _mean(k.FIELD_SUM_REL),
-    "sze": _total(k.FIELD_SZE),
-    "sze_mean": _mean(k.FIELD_SZE),
-    "bmpre": _total(k.FIELD_BMPRE),
-    "bmpre_mean": _mean(k.FIELD_BMPRE),
-    "d1": _mean(k.FIELD_D1, 100.0),
-    "density": lambda sums: _ratio(sums[k.FIELD_VALID], sums[k.FIELD_N]),
-    "mae_z": _mean(k.FIELD_SUM_EZ),
-    "rmse_z": lambda sums: math.sqrt(_ratio(sums[k.FIELD_SUM_EZ2], sums[k.FIELD_EVAL])),
-    "absrel_z": _mean(k.FIELD_SUM_RELZ),
-    # 1/Z in 1/km: sqrt(mean((1/Z_E − 1/Z_D)²)) · 1000 for Z in metres.
-    "irmse": lambda sums: 1000.0 * math.sqrt(_ratio(sums[k.FIELD_SUM_IZ2], sums[k.FIELD_EVAL])),
-    "vpe": lambda sums: _ratio(sums[k.FIELD_SUM_VPE], sums[k.FIELD_N_VPE]),
-    "lrc": lambda sums: _ratio(sums[k.FIELD_LRC], sums[k.FIELD_N_LRC], 100.0),
+    m.name: _from_registry(m)
+    for m in registry.MEASURES
+    if m.kind != registry.STORED and m.name not in registry.FAMILIES
 }
+"""The measures of fixed fields, from the registry (``bad_X``, ``aNN``: see :func:`_derivation`)."""
 
 
 def measure_from_sums(name: str, sums: _Sums, thresholds: np.ndarray) -> float:

@@ -6,15 +6,16 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from dispeval_ros.core import registry
 from dispeval_ros.core.measures import GT_FREE_MEASURES, HIGHER_IS_BETTER
 from dispeval_ros.errors import ConfigurationError
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 
 #: The objectives the models compare where they are scored (METHOD.md §4).
-DEFAULT_OBJECTIVE_MEASURES = ("sze", "bmpre")
+DEFAULT_OBJECTIVE_MEASURES = registry.names(objective=True, needs=registry.NEEDS_GT)
 #: The objective of ground-truth-free scores (without GT, or beside it when asked for).
-GT_FREE_OBJECTIVE = "vpe"
+(GT_FREE_OBJECTIVE,) = registry.names(objective=True, needs=registry.NEEDS_IMAGES)
 #: :func:`default_objective_measures` in words, for the options' help.
 DEFAULT_OBJECTIVES_TEXT = (
     "sze and bmpre where scored, else every GT measure scored but density; vpe without GT"

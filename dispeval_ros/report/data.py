@@ -33,20 +33,16 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from dispeval_ros.core import kernels as k
-from dispeval_ros.core.measures import (
-    HIGHER_IS_BETTER,
-    SUM_FIELDS,
-    applies,
-    bad_threshold,
-    measure_unit,
-    quantile_level,
-)
+from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, applies, quantile_level
 from dispeval_ros.core.models import ModelResult, evaluate_models
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.recipes import (  # recipe_values: also from here, its old home
+    measure_recipe,
+    recipe_values,  # noqa: F401
+)
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
@@ -68,86 +64,6 @@ _DTYPES: dict[str, np.dtype[Any]] = {
     "u32": np.dtype("<u4"),
     "f64": np.dtype("<f8"),
 }
-
-# -- measures as recipes -------------------------------------------------------------------
-
-_RATIOS = {
-    # name: (numerator field, denominator field, scale) — as measures._FROM_SUMS
-    "bmp": (k.FIELD_BAD, k.FIELD_EVAL, 100.0),
-    "mae": (k.FIELD_SUM_E, k.FIELD_EVAL, 1.0),
-    "mse": (k.FIELD_SUM_E2, k.FIELD_EVAL, 1.0),
-    "mre": (k.FIELD_SUM_REL, k.FIELD_EVAL, 1.0),
-    "sze_mean": (k.FIELD_SZE, k.FIELD_EVAL, 1.0),
-    "bmpre_mean": (k.FIELD_BMPRE, k.FIELD_EVAL, 1.0),
-    "d1": (k.FIELD_D1, k.FIELD_EVAL, 100.0),
-    "density": (k.FIELD_VALID, k.FIELD_N, 1.0),
-    "mae_z": (k.FIELD_SUM_EZ, k.FIELD_EVAL, 1.0),
-    "absrel_z": (k.FIELD_SUM_RELZ, k.FIELD_EVAL, 1.0),
-    "vpe": (k.FIELD_SUM_VPE, k.FIELD_N_VPE, 1.0),
-    "lrc": (k.FIELD_LRC, k.FIELD_N_LRC, 100.0),
-}
-# name: (numerator field, scale inside the root) of the root-mean measures
-_ROOTS = {
-    "rmse": (k.FIELD_SUM_E2, 1.0),
-    "rmse_z": (k.FIELD_SUM_EZ2, 1.0),
-    "irmse": (k.FIELD_SUM_IZ2, 1e6),
-}
-_TOTALS = {"bmp_count": k.FIELD_BAD, "sze": k.FIELD_SZE, "bmpre": k.FIELD_BMPRE}
-
-
-def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
-    """How the browser derives measure ``name`` from a row of sums (or reads it stored).
-
-    Kinds: ``ratio`` (``scale * sums[num] / sums[den]``, NaN unless ``sums[den] > 0``),
-    ``sqrt_ratio`` (the root of that ratio), ``total`` (``sums[num]``) and ``stored`` (a
-    per-frame quantile; not summable, NaN over sequences). ``higher`` marks
-    higher-is-better measures, negated in objectives.
-    """
-    recipe: dict[str, Any] = {
-        "name": name,
-        "higher": name in HIGHER_IS_BETTER,
-        "unit": measure_unit(name),
-    }
-    if name in _RATIOS:
-        num, den, scale = _RATIOS[name]
-        recipe.update(kind="ratio", num=num, den=den, scale=scale)
-    elif name in _ROOTS:
-        num, scale = _ROOTS[name]
-        recipe.update(kind="sqrt_ratio", num=num, den=k.FIELD_EVAL, scale=scale)
-    elif name in _TOTALS:
-        recipe.update(kind="total", num=_TOTALS[name], den=-1, scale=1.0)
-    elif bad_threshold(name) is not None:
-        hits = np.flatnonzero(np.asarray(thresholds)[1:] == bad_threshold(name))
-        if hits.size == 0:
-            raise ConfigurationError(f"measure '{name}' has no threshold column in the results")
-        recipe.update(kind="ratio", num=k.FIELD_BAD + int(hits[0]) + 1, den=k.FIELD_EVAL)
-        recipe["scale"] = 100.0
-    elif quantile_level(name) is not None:
-        recipe.update(kind="stored", num=-1, den=-1, scale=1.0)
-    else:
-        raise ConfigurationError(f"measure '{name}' is not known to the report")
-    return recipe
-
-
-def recipe_values(
-    recipe: Mapping[str, Any], sums: np.ndarray, stored: np.ndarray | None = None
-) -> np.ndarray:
-    """Vectorised :func:`measure_recipe` evaluation over rows of sums (``(..., fields)``)."""
-    kind = recipe["kind"]
-    shape = sums.shape[:-1]
-    if kind == "stored":
-        return np.full(shape, np.nan) if stored is None else np.asarray(stored, np.float64)
-    numerator = sums[..., recipe["num"]]
-    if kind == "total":
-        return numerator.astype(np.float64, copy=True)
-    denominator = sums[..., recipe["den"]]
-    result = np.full(shape, np.nan)
-    ok = denominator > 0
-    result[ok] = recipe["scale"] * numerator[ok] / denominator[ok]
-    if kind == "sqrt_ratio":
-        result = np.sqrt(result)
-    return result
-
 
 # -- selections and the Python reference of the in-browser models --------------------------
 

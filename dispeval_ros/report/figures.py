@@ -26,9 +26,8 @@ from dispeval_ros.report.data import (
     common_stamps,
     default_selection,
     evaluate_selection,
-    measure_recipe,
-    recipe_values,
 )
+from dispeval_ros.report.recipes import measure_recipe, recipe_values
 
 FIGURES = ("group_table.png", "curves.png", "criteria_bars.png", "parallel_u2.png")
 MAX_CURVES = 24

@@ -1,6 +1,8 @@
 r"""Assemble the report: ONE self-contained HTML file (no network, no CDN, nothing external).
 
-The style and the script are inlined from ``assets/``; the data goes in a
+The style and the script are inlined from ``assets/``. The script is one closure written in parts
+(``assets/js/*.js``, one per concern: models, data, selections, controls, each view), joined in
+the order of :data:`SCRIPT_PARTS` when the page is written: no bundler. The data goes in a
 ``<script type="application/json">`` element with ``<``, ``>`` and ``&`` written as JSON
 ``\u003c``-style escapes, so no name in the data (a method called ``</script><img …>``) can ever end
 the element or become markup. The script renders names with ``textContent`` only. A
@@ -24,14 +26,42 @@ CSP = (
 )
 
 
+SCRIPT_PARTS = (
+    "open",  # the closure opens; constants
+    "numeric",
+    "models",
+    "data",
+    "selections",
+    "dom",
+    "controls",
+    "layout",
+    "render",
+    "curves",
+    "bars",
+    "parallel",
+    "thumbnails",
+    "start",  # main(); the closure closes
+)
+"""The parts of the page's script, in the one order they are joined (``assets/js/<part>.js``)."""
+
+
 def _asset(name: str) -> str:
     try:
-        return (resources.files("dispeval_ros.report") / "assets" / name).read_text("utf-8")
+        return (
+            resources.files("dispeval_ros.report")
+            .joinpath("assets", *name.split("/"))
+            .read_text("utf-8")
+        )
     except (FileNotFoundError, OSError) as error:
         raise InputError(
             f"the report asset {name} is missing from this installation ({error}); "
             "dispeval_ros/report/assets/* must be installed as package data"
         ) from None
+
+
+def report_script() -> str:
+    """The page's script: the parts of :data:`SCRIPT_PARTS` joined in order."""
+    return "".join(_asset(f"js/{part}.js") for part in SCRIPT_PARTS)
 
 
 def script_json(data: Any) -> str:
@@ -61,7 +91,7 @@ def _text(value: str) -> str:
 def render_html(data: Mapping[str, Any]) -> str:
     """The complete HTML document of report ``data`` (from ``build_report_data``)."""
     style = _asset("report.css")
-    script = _asset("report.js")
+    script = report_script()
     for name, text in (("report.css", style), ("report.js", script)):
         if "</" in text.replace("<\\/", ""):
             raise InputError(f"asset {name} contains '</', which would end its inline element")

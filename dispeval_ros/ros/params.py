@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dispeval_ros.core import registry
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.stream.core import GT_KINDS, CoreConfig
@@ -185,8 +186,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "Error measures. 'default' = the summable default set (every default measure except the "
         "quantiles aNN, which cannot be added over frames), plus the depth-domain measures for "
         "pointcloud ground truth",
-        "default, or a list of: bmp, bmp_count, bad_X, mae, mse, rmse, mre, sze, sze_mean, bmpre, "
-        "bmpre_mean, d1, aNN, density, mae_z, rmse_z, absrel_z, irmse",
+        f"default, or a list of: {registry.listing(', ')}",
     ),
     Param(
         "missing",

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dispeval_ros.core import Scores
-from dispeval_ros.core.measures import SUM_FIELDS, applies
+from dispeval_ros.core import Scores, registry
+from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, applies
 from dispeval_ros.errors import ConfigurationError, InputError
 
 OK, WARN, ERROR = 0, 1, 2
@@ -47,7 +47,7 @@ class AlarmThresholds:
         """The alarm level of one ``criterion/measure`` value (NaN never alarms)."""
         if math.isnan(value):
             return OK
-        lower_is_bad = key.endswith("/density")
+        lower_is_bad = key.rpartition("/")[2] in HIGHER_IS_BETTER
         for level, limits in ((ERROR, self.error), (WARN, self.warn)):
             limit = limits.get(key)
             if limit is not None and (value < limit if lower_is_bad else value > limit):
@@ -163,14 +163,17 @@ def scores_from_status(
     )
 
 
+ALWAYS_SCORED = (registry.POINTS.name, *registry.names(needs=registry.NEEDS_NONE))
+"""What every criterion's vector starts with (``n``, ``density``): they need nothing."""
+
+
 def vector_labels(criteria: Sequence[str], measures: Sequence[str]) -> list[str]:
     """The fixed order of a score vector: per criterion ``n``, ``density``, then each measure."""
-    labels = []
+    labels: list[str] = []
     for criterion in criteria:
-        labels.append(f"{criterion}/n")
-        labels.append(f"{criterion}/density")
+        labels.extend(f"{criterion}/{m}" for m in ALWAYS_SCORED)
         labels.extend(
-            f"{criterion}/{m}" for m in measures if m != "density" and applies(m, criterion)
+            f"{criterion}/{m}" for m in measures if m not in ALWAYS_SCORED and applies(m, criterion)
         )
     return labels
 
