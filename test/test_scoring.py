@@ -35,6 +35,14 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from reference import (
+    POLICIES,
+    assert_matches,
+    kitti_fill,
+    near_jumps,
+    numpy_measures,
+    zbuffer_occlusion,
+)
 
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.evaluator import Evaluator, kth_smallest
@@ -48,145 +56,9 @@ from dispeval_ros.errors import (
 
 NAN = math.nan
 INF = math.inf
-POLICIES = ("interpolate", "thesis", "ignore")
-# measures compared with rtol 1e-9 (counts, percentages, order statistics) ...
+# measures compared with rtol 1e-9 (counts, percentages, order statistics; reference.SUMS 1e-6)
 EXACT = ("n", "bmp", "bmp_count", "bad_0.5", "bad_2", "bad_4", "d1", "density")
 QUANTILES = ("a50", "a90", "a95", "a99")
-# ... and with rtol 1e-6 (sums and means of float terms)
-SUMS = ("mae", "mse", "rmse", "mre", "sze", "sze_mean", "bmpre", "bmpre_mean")
-
-
-# ------------------------------------------------------------------ independent re-computation
-
-
-def kitti_fill(est: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """KITTI background interpolation, written with index arithmetic (no loops over gaps).
-
-    Returns float64 values to score; points that stay missing are 0.
-    """
-    height, width = est.shape
-    columns = np.broadcast_to(np.arange(width), est.shape)
-    previous = np.maximum.accumulate(np.where(valid, columns, -1), axis=1)
-    following = np.minimum.accumulate(np.where(valid, columns, width)[:, ::-1], axis=1)[:, ::-1]
-    rows = np.arange(height)[:, None]
-    left = np.where(previous >= 0, est[rows, np.clip(previous, 0, width - 1)], np.nan)
-    right = np.where(following < width, est[rows, np.clip(following, 0, width - 1)], np.nan)
-    filled = np.where(valid, est, np.fmin(left, right))  # fmin: one side missing → the other
-    filled = np.where(np.isnan(filled), 0.0, filled)
-    with_values = np.flatnonzero(valid.any(axis=1))
-    if with_values.size:
-        filled[: with_values[0]] = filled[with_values[0]]
-        filled[with_values[-1] + 1 :] = filled[with_values[-1]]
-    return filled
-
-
-def numpy_measures(
-    gt: np.ndarray,
-    est: np.ndarray,
-    criteria: dict[str, np.ndarray],
-    policy: str,
-    camera: Camera | None = None,
-    est_range: tuple[float, float] | None = None,
-    delta: float = 1.0,
-    mu: float = 0.01,
-) -> dict[str, dict[str, float]]:
-    """Every default measure per criterion (a boolean mask each), straight from METHOD.md §3."""
-    d = np.asarray(gt, np.float32).astype(np.float64)
-    raw = np.asarray(est, np.float32).astype(np.float64)
-    lo, hi = est_range if est_range is not None else (-INF, INF)
-    with np.errstate(invalid="ignore"):
-        est_valid = np.isfinite(raw) & (raw > 0) & (raw >= lo) & (raw <= hi)
-    if policy == "interpolate":
-        used = kitti_fill(np.where(est_valid, raw, 0.0), est_valid)
-    else:
-        used = np.where(est_valid, raw, 0.0)
-    fb = camera.f * camera.baseline if camera else 1.0
-    doffs = camera.doffs if camera else 0.0
-    result: dict[str, dict[str, float]] = {}
-    for name, mask in criteria.items():
-        n = int(mask.sum())
-        evaluated = mask & est_valid if policy == "ignore" else mask
-        D = d[evaluated]
-        E = used[evaluated]
-        e = np.abs(E - D)
-        count = e.size
-
-        def ratio(x: float, count: int = count) -> float:
-            return x / count if count else NAN
-
-        sze = float(np.abs(fb / (D + doffs + mu) - fb / (E + doffs + mu)).sum())
-        bmpre = float((e / D)[e > delta].sum())
-        values = {
-            "n": float(n),
-            "bmp": ratio(100.0 * np.count_nonzero(e > delta)),
-            "bmp_count": float(np.count_nonzero(e > delta)),
-            "bad_0.5": ratio(100.0 * np.count_nonzero(e > 0.5)),
-            "bad_2": ratio(100.0 * np.count_nonzero(e > 2.0)),
-            "bad_4": ratio(100.0 * np.count_nonzero(e > 4.0)),
-            "mae": ratio(e.sum()),
-            "mse": ratio((e * e).sum()),
-            "rmse": math.sqrt(ratio((e * e).sum())),
-            "mre": ratio((e / D).sum()),
-            "sze": sze,
-            "sze_mean": ratio(sze),
-            "bmpre": bmpre,
-            "bmpre_mean": ratio(bmpre),
-            "d1": ratio(100.0 * np.count_nonzero((e > 3.0) & (e > 0.05 * D))),
-            "density": float(est_valid[mask].sum()) / n if n else NAN,
-        }
-        ordered = np.sort(e)
-        for q in (50, 90, 95, 99):
-            values[f"a{q}"] = float(ordered[(count * q) // 100]) if count else NAN
-        result[name] = values
-    return result
-
-
-def assert_matches(scores: Scores, expected: dict[str, dict[str, float]]) -> None:
-    """Library scores equal the re-computation: rtol 1e-9 for counts/percentages, 1e-6 sums."""
-    for criterion, values in expected.items():
-        got = scores[criterion]
-        for measure, want in values.items():
-            have = float(got[measure])
-            where = f"{criterion}/{measure} ({scores.policy}): library {have!r}, numpy {want!r}"
-            if math.isnan(want):
-                assert math.isnan(have), where
-                continue
-            rel = 1e-6 if measure in SUMS else 1e-9
-            # a tiny absolute tolerance: terms that are 0 in exact arithmetic (E = D) may come
-            # out as ±1 ulp from the compiled kernel's reciprocal arithmetic
-            assert math.isclose(have, want, rel_tol=rel, abs_tol=1e-9), where
-
-
-def zbuffer_occlusion(gt: np.ndarray, valid: np.ndarray, tolerance: float = 1.0) -> np.ndarray:
-    """Straightforward numpy z-buffer: per row, the largest disparity landing on each column."""
-    height, width = gt.shape
-    d = np.where(valid, gt, 0.0).astype(np.float64)
-    target = np.floor(np.arange(width)[None, :] - d + 0.5).astype(np.int64)
-    inside = valid & (target >= 0) & (target < width)
-    flat = (np.arange(height)[:, None] * width + np.clip(target, 0, width - 1)).ravel()
-    zbuffer = np.full(height * width, -np.inf)
-    np.maximum.at(zbuffer, flat[inside.ravel()], d.ravel()[inside.ravel()])
-    hidden = zbuffer[flat].reshape(gt.shape) > d + tolerance
-    return valid & (~inside | hidden)
-
-
-def near_jumps(gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, width: int = 9) -> np.ndarray:
-    """Points within a ``width`` square of a jump > gap between two valid 4-neighbours."""
-    d = np.where(valid, gt, 0.0).astype(np.float64)
-    jump = np.zeros(gt.shape, bool)
-    horizontal = valid[:, 1:] & valid[:, :-1] & (np.abs(d[:, 1:] - d[:, :-1]) > gap)
-    vertical = valid[1:] & valid[:-1] & (np.abs(d[1:] - d[:-1]) > gap)
-    jump[:, 1:] |= horizontal
-    jump[:, :-1] |= horizontal
-    jump[1:] |= vertical
-    jump[:-1] |= vertical
-    r = width // 2
-    padded = np.pad(jump, r)
-    out = np.zeros(gt.shape, bool)
-    for dy in range(width):
-        for dx in range(width):
-            out |= padded[dy : dy + gt.shape[0], dx : dx + gt.shape[1]]
-    return out
 
 
 def one_line(error: pytest.ExceptionInfo[BaseException]) -> str:
@@ -385,7 +257,7 @@ def test_ignore_with_no_valid_estimate_gives_nan_not_zero() -> None:
 # ------------------------------------------------------------------------- KITTI interpolation
 
 
-def scored_estimate(est: np.ndarray, policy: str = "interpolate", est_range=None) -> np.ndarray:
+def library_estimate(est: np.ndarray, policy: str = "interpolate", est_range=None) -> np.ndarray:
     """The estimate as scoring sees it, recovered through public scores only.
 
     Every pixel is its own named ROI class and the GT is 1000 everywhere, so each
@@ -427,7 +299,7 @@ def test_interpolation_rows_gaps_and_copied_rows() -> None:
         ],
         np.float64,
     )
-    np.testing.assert_array_equal(scored_estimate(est), expected)
+    np.testing.assert_array_equal(library_estimate(est), expected)
     # the independent re-computation used by the property tests agrees
     valid = np.isfinite(est) & (est > 0)
     np.testing.assert_array_equal(kitti_fill(np.where(valid, est, 0.0), valid), expected)
@@ -435,22 +307,22 @@ def test_interpolation_rows_gaps_and_copied_rows() -> None:
 
 def test_interpolation_takes_the_smaller_neighbour_either_side() -> None:
     est = np.array([[2.0, NAN, NAN, 9.0, NAN, 4.0]], np.float32)
-    np.testing.assert_array_equal(scored_estimate(est), [[2, 2, 2, 9, 4, 4]])
+    np.testing.assert_array_equal(library_estimate(est), [[2, 2, 2, 9, 4, 4]])
 
 
 def test_interpolation_respects_est_range_and_other_policies() -> None:
     est = np.array([[70.0, 6.0, 80.0, 5.0, 90.0]], np.float32)  # range (1, 64): 70, 80, 90 out
-    np.testing.assert_array_equal(scored_estimate(est, est_range=(1, 64)), [[6, 6, 5, 5, 5]])
+    np.testing.assert_array_equal(library_estimate(est, est_range=(1, 64)), [[6, 6, 5, 5, 5]])
     np.testing.assert_array_equal(
-        scored_estimate(est, "thesis", est_range=(1, 64)), [[0, 6, 0, 5, 0]]
+        library_estimate(est, "thesis", est_range=(1, 64)), [[0, 6, 0, 5, 0]]
     )
-    ignored = scored_estimate(est, "ignore", est_range=(1, 64))
+    ignored = library_estimate(est, "ignore", est_range=(1, 64))
     np.testing.assert_array_equal(np.isnan(ignored), [[True, False, True, False, True]])
 
 
 def test_interpolation_of_an_all_missing_estimate_is_zero() -> None:
     est = np.full((3, 4), NAN, np.float32)
-    np.testing.assert_array_equal(scored_estimate(est), np.zeros((3, 4)))
+    np.testing.assert_array_equal(library_estimate(est), np.zeros((3, 4)))
 
 
 def test_density_counts_before_interpolation_per_criterion() -> None:
