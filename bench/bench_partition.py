@@ -24,7 +24,7 @@ from bench_scoring import CRITERIA, run_on_frames, timed
 
 from dispeval_ros import Camera, Evaluator
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
 from test_partition_reference import numpy_partition
 
 ROUNDS = 7

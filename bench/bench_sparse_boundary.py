@@ -1,7 +1,7 @@
 """The boundary rule of sparse GT (``criteria.sparse_discontinuities``): time per map, checked.
 
 Prints timings only (nothing is asserted about time) and checks every result against the
-max/min-filter formulation of ``test/test_partition_reference.py``. Run:
+max/min-filter formulation of ``test/core/test_partition_reference.py``. Run:
 
     python bench/bench_sparse_boundary.py [--repeat N]
 
@@ -24,7 +24,7 @@ import dispeval_ros
 from dispeval_ros.core import criteria
 from dispeval_ros.io import load_scene
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
 from test_partition_reference import numpy_sparse_boundary
 
 LIDAR_SCENES = ("kitti2015-with-velodyne", "stereo-rcnn-demo")

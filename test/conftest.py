@@ -8,7 +8,9 @@ missing data folder is a failure, so CI never passes by skipping.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -34,3 +36,18 @@ def shared_data() -> Path:
             pytest.fail(f"DISPEVAL_REQUIRE_DATA=1 but {reason}")
         pytest.skip(reason)
     return root
+
+
+@pytest.fixture
+def ros() -> Iterator[Any]:
+    """The rclpy harness of the node tests (ros_nodes_support.py), closed after each test.
+
+    Imported here, not at the top: it skips (or fails under DISPEVAL_REQUIRE_ROS=1) without rclpy.
+    """
+    from ros_nodes_support import ros_harness
+
+    harness = ros_harness()
+    try:
+        yield harness
+    finally:
+        harness.close()

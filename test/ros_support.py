@@ -61,9 +61,7 @@ class Ros:
 
     def _node(self, kind: str, parameters: dict[str, Any]) -> Any:
         overrides = [self._parameter(name, value=value) for name, value in parameters.items()]
-        return self.add(
-            self._classes[kind](context=self.context, parameter_overrides=overrides)
-        )
+        return self.add(self._classes[kind](context=self.context, parameter_overrides=overrides))
 
     def evaluator(self, **parameters: Any) -> Any:
         return self._node("evaluator", parameters)

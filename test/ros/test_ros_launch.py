@@ -51,7 +51,7 @@ else:
 
     def sample_bag() -> Path:
         """The sample bag of the source tree (colcon test runs in it), else the installed one."""
-        source = Path(__file__).resolve().parents[1] / "bags" / SAMPLE_NAME
+        source = Path(__file__).resolve().parents[2] / "bags" / SAMPLE_NAME
         if (source / "metadata.yaml").is_file():
             return source
         installed = find_sample_bag()

@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from test_real_scenes import kitti_devkit_interpolation
+from reference import POLICIES, scored_estimate
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.criteria import texture_set
@@ -28,17 +28,6 @@ from dispeval_ros.core.measures import Scores
 from dispeval_ros.errors import InputError, ShapeMismatchError
 from dispeval_ros.io import load_scene, write_pfm
 from dispeval_ros.testbed.methods import default_methods
-
-POLICIES = ("interpolate", "thesis", "ignore")
-
-
-def scored_estimate(est: np.ndarray, policy: str) -> tuple[np.ndarray, np.ndarray]:
-    """(value to score, whether the pixel takes part) per pixel under a missing policy."""
-    valid = np.isfinite(est) & (est > 0)
-    if policy == "interpolate":
-        return kitti_devkit_interpolation(est), np.ones(est.shape, bool)
-    values = np.where(valid, est, 0.0).astype(np.float64)
-    return values, valid if policy == "ignore" else np.ones(est.shape, bool)
 
 
 def loop_measures(

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bag_support import as_ros1
 from rosbags.typesys import Stores, get_typestore
 from sample_feed import dispeval_process
 
@@ -333,7 +334,6 @@ def _collect(transport: Any, player: Any) -> dict[str, list[bytes]]:
 def test_player_sends_the_recorded_bytes_from_every_bag_format(
     transports: tuple[Any, Any], tmp_path: Path
 ) -> None:
-    from rosbags.convert import convert
     from rosbags.highlevel import AnyReader
 
     from dispeval_ros.dds.player import BagPlayer
@@ -349,20 +349,7 @@ def test_player_sends_the_recorded_bytes_from_every_bag_format(
     for storage, path in bags.items():
         write_bag(path, iter(frames), storage=storage)
     bags["ros1"] = tmp_path / "drive.bag"
-    convert(
-        srcs=[bags.pop("rosbag2-sqlite3")],
-        dst=bags["ros1"],
-        dst_storage="sqlite3",
-        dst_version=8,
-        compress=None,
-        compress_mode="file",
-        default_typestore=None,
-        typestore=None,
-        exclude_topics=[],
-        include_topics=[],
-        exclude_msgtypes=[],
-        include_msgtypes=[],
-    )
+    as_ros1(bags.pop("rosbag2-sqlite3"), bags["ros1"])
     expected: dict[str, list[bytes]] = {}
     with AnyReader([bags["rosbag2-mcap"]]) as reader:
         for connection, _, raw in reader.messages():

@@ -61,7 +61,7 @@ def test_explicit_numba_cache_dir_wins(tmp_path: Path, monkeypatch: pytest.Monke
     assert str(tmp_path) == numba.config.CACHE_DIR
 
 
-REPOSITORY = Path(__file__).resolve().parents[1]
+REPOSITORY = Path(__file__).resolve().parents[2]
 NOT_SOURCES = shutil.ignore_patterns(
     ".git", ".venv*", "build", "install", "log", "*.egg-info", "__pycache__", ".hypothesis"
 )

@@ -25,7 +25,9 @@ from dispeval_ros.io.bags.chunked_mcap import NotChunked, fast_then_slow
 from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
 
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
-REPO_BAGS = sorted(p for p in (Path(__file__).parent.parent / "bags").iterdir() if p.is_dir())
+REPO_BAGS = sorted(
+    p for p in (Path(__file__).resolve().parents[2] / "bags").iterdir() if p.is_dir()
+)
 T0 = 1_700_000_000_000_000_000
 STEP = 100_000_000
 

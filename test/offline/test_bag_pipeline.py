@@ -6,7 +6,6 @@ import json
 import os
 import random
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
@@ -14,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_support import METHODS, as_ros1, bag_args, database_content
 
 from dispeval_ros import Camera
 from dispeval_ros.cli.main import main
@@ -40,32 +40,7 @@ from dispeval_ros.offline.make_bag import (
     write_bag,
 )
 
-METHODS = ("bm_fast", "sgbm", "sgbm_3way")
 FORMATS = ("rosbag2-mcap", "rosbag2-sqlite3", "mcap", "ros1")
-
-
-def method_args() -> list[str]:
-    args: list[str] = []
-    for name in METHODS:
-        args += ["--method", f"{name}={disparity_topic(name)}"]
-    return args
-
-
-def bag_args(bag: Path, out: Path, *extra: str) -> list[str]:
-    return [
-        "bag",
-        str(bag),
-        "--gt",
-        GT_TOPIC,
-        *method_args(),
-        "--camera-info",
-        LEFT_INFO,
-        RIGHT_INFO,
-        "--out",
-        str(out),
-        "--quiet",
-        *extra,
-    ]
 
 
 @pytest.fixture(scope="module")
@@ -80,23 +55,8 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     }
     for storage, path in paths.items():
         write_bag(path, iter(frames), storage=storage)
-    from rosbags.convert import convert
-
     paths["ros1"] = root / "drive.bag"
-    convert(
-        srcs=[paths["rosbag2-sqlite3"]],
-        dst=paths["ros1"],
-        dst_storage="sqlite3",
-        dst_version=8,
-        compress=None,
-        compress_mode="file",
-        default_typestore=None,
-        typestore=None,
-        exclude_topics=[],
-        include_topics=[],
-        exclude_msgtypes=[],
-        include_msgtypes=[],
-    )
+    as_ros1(paths["rosbag2-sqlite3"], paths["ros1"])
     return paths
 
 
@@ -197,28 +157,6 @@ def test_jobs_give_the_same_database(
     )
     capsys.readouterr()
     assert database_content(tmp_path / "one") == database_content(tmp_path / "two")
-
-
-def database_content(folder: Path) -> tuple[list[tuple], ...]:
-    """Every table's rows in a canonical order (what 'the same database' means).
-
-    The provenance record is left out: it says how a database was made (which inputs, which
-    merge), so it differs by design between an uninterrupted run, a merge and a resume.
-    """
-    connection = sqlite3.connect(folder / "results.sqlite")
-    tables = [
-        row[0]
-        for row in connection.execute(
-            "SELECT name FROM sqlite_master WHERE type='table' AND name != 'provenance' "
-            "ORDER BY name"
-        )
-    ]
-    content = tuple(
-        sorted(connection.execute(f'SELECT * FROM "{table}"').fetchall(), key=repr)
-        for table in tables
-    )
-    connection.close()
-    return content
 
 
 def group_alive(pgid: int) -> bool:

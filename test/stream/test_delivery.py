@@ -66,7 +66,9 @@ def test_every_scored_frame_is_stored_or_counted_lost() -> None:
         assert delivery is not None
         ledger.add(delivery, methods_of[k])
     final = read_delivery(
-        delivery_record("e1", 6, counts(a=(6, 1, 0, 0), b=(3, 0, 2, 1), never=(0, 5, 0, 0)), final=True)
+        delivery_record(
+            "e1", 6, counts(a=(6, 1, 0, 0), b=(3, 0, 2, 1), never=(0, 5, 0, 0)), final=True
+        )
     )
     assert final is not None
     ledger.add(final)
@@ -121,4 +123,3 @@ def test_two_evaluators_are_kept_apart_and_summed() -> None:
     totals, messages = ledger.checkpoint(closing=True)
     assert totals == {"a": MatchCounts(0, 0, 1, 0), "b": MatchCounts(0, 0, 1, 0)}
     assert len(messages) == 2
-

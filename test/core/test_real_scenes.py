@@ -1,18 +1,18 @@
 """Scoring on the real stereo data of ../shared/data, checked against independent computations.
 
 Every test uses the ``shared_data`` fixture (skip where the data is absent). Conventions of the
-code under test relied on here (see test_scoring.py for the full list): valid GT = finite and
-> 0, restricted to the official ``all`` mask when given; missing estimate = not finite, ≤ 0
-or outside the inclusive ``est_range``; ``interpolate`` = KITTI background interpolation,
-``thesis`` = E = 0, ``ignore`` = missing points out of the error measures (N_eval = valid
-estimates) but in ``n`` and ``density``; errors ``e = |float64(E) − float64(D)|`` of the
-float32 maps; visibility from the official ``nonocc``/``disc`` masks (occluded = valid ∖ nonocc,
-boundary = disc ∖ occluded), else a left-right check with the right GT (target column
-``floor(x − D + 0.5)``, |D_L − D_R| > 1 or outside → occluded), else a z-buffer of the left
-GT (same rounding, hidden when a disparity larger by more than 1 lands on the same column);
-boundary without a disc mask = within a 9×9 square of a 4-neighbour jump > 2 px between two
-valid points; depth = 3-means (Lloyd to a fixed point, started from the optimal split of a
-fine histogram; ties to the farther cluster).
+code under test relied on here (reference.py has the full list and the re-computations): valid
+GT = finite and > 0, restricted to the official ``all`` mask when given; missing estimate = not
+finite, ≤ 0 or outside the inclusive ``est_range``; ``interpolate`` = KITTI background
+interpolation, ``thesis`` = E = 0, ``ignore`` = missing points out of the error measures
+(N_eval = valid estimates) but in ``n`` and ``density``; errors ``e = |float64(E) −
+float64(D)|`` of the float32 maps; visibility from the official ``nonocc``/``disc`` masks
+(occluded = valid ∖ nonocc, boundary = disc ∖ occluded), else a left-right check with the right
+GT (target column ``floor(x − D + 0.5)``, |D_L − D_R| > 1 or outside → occluded), else a
+z-buffer of the left GT (same rounding, hidden when a disparity larger by more than 1 lands on
+the same column); boundary without a disc mask = within a 9×9 square of a 4-neighbour jump > 2
+px between two valid points; depth = 3-means (Lloyd to a fixed point, started from the optimal
+split of a fine histogram; ties to the farther cluster).
 
 Measured on this data (see the report of the change that added this file): left-right
 occlusion vs official nonocc agrees on 98.9 % (teddy) and 98.5 % (cones) of the valid points;
@@ -23,20 +23,31 @@ plain Lloyd from range-based centroids is 0.009 % above it on cones and 2.09× o
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from reference import (
+    POLICIES,
+    assert_matches,
+    kitti_devkit_interpolation,
+    left_right_occlusion,
+    near_jumps,
+    numpy_measures,
+    optimal_three_clustering,
+    plain_lloyd,
+    valid_of,
+    within_cluster_sse,
+    zbuffer_occlusion,
+)
 
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.evaluator import Evaluator
 from dispeval_ros.core.measures import Scores
 from dispeval_ros.io import load_scene, read_disparity
 
-POLICIES = ("interpolate", "thesis", "ignore")
 MIDDLEBURY = "middlebury-2001-2003"
 # all / nonocc / disc pixel counts of the official masks (data README)
 README_COUNTS = {
@@ -45,7 +56,6 @@ README_COUNTS = {
     "teddy": (165344, 147651, 40517),
     "cones": (163321, 143926, 47189),
 }
-SUMS = ("mae", "mse", "rmse", "mre", "sze", "sze_mean", "bmpre", "bmpre_mean")
 VISIBILITY = ("occluded", "boundary", "interior")
 
 
@@ -77,216 +87,6 @@ def sgbm(root: Path, name: str, disparities: int) -> np.ndarray:
     estimate = matcher.compute(left, right).astype(np.float32) / 16.0
     assert 0.05 < (estimate <= 0).mean() < 0.6  # it does leave holes
     return estimate
-
-
-def valid_of(gt: np.ndarray, masks: dict | None = None) -> np.ndarray:
-    with np.errstate(invalid="ignore"):
-        valid = np.isfinite(gt) & (gt > 0)
-    if masks and "all" in masks:
-        valid &= masks["all"]
-    return valid
-
-
-# ------------------------------------------------------------- independent re-computation
-
-
-def kitti_devkit_interpolation(disparity: np.ndarray) -> np.ndarray:
-    """A line-by-line port of the KITTI devkit's ``interpolateBackground`` (io_disp.h).
-
-    Invalid = ≤ 0 or not finite. Row pass: a gap with valid pixels on both sides takes the
-    smaller of them; then extrapolation to the left and right of each row; then per column,
-    to the top and bottom. Pixels still invalid are returned as 0.
-    """
-    d = np.where(np.isfinite(disparity) & (disparity > 0), disparity, -1.0).astype(np.float64)
-    height, width = d.shape
-    for v in range(height):
-        row = d[v]
-        valid = np.flatnonzero(row > 0)
-        if valid.size == 0:
-            continue
-        for a, b in itertools.pairwise(valid):
-            if b > a + 1:
-                row[a + 1 : b] = min(row[a], row[b])
-        row[: valid[0]] = row[valid[0]]
-        row[valid[-1] + 1 :] = row[valid[-1]]
-    for u in range(width):
-        column = d[:, u]
-        valid = np.flatnonzero(column > 0)
-        if valid.size == 0:
-            continue
-        column[: valid[0]] = column[valid[0]]
-        column[valid[-1] + 1 :] = column[valid[-1]]
-    return np.where(d > 0, d, 0.0)
-
-
-def numpy_measures(
-    gt: np.ndarray,
-    est: np.ndarray,
-    criteria: dict[str, np.ndarray],
-    policy: str,
-    camera: Camera | None = None,
-    est_range: tuple[float, float] | None = None,
-    delta: float = 1.0,
-    mu: float = 0.01,
-) -> dict[str, dict[str, float]]:
-    """Every default measure per criterion mask, in float64, straight from METHOD.md §3."""
-    d = gt.astype(np.float64)
-    raw = est.astype(np.float32).astype(np.float64)
-    lo, hi = est_range if est_range is not None else (-math.inf, math.inf)
-    with np.errstate(invalid="ignore"):
-        est_valid = np.isfinite(raw) & (raw > 0) & (raw >= lo) & (raw <= hi)
-    if policy == "interpolate":
-        used = kitti_devkit_interpolation(np.where(est_valid, raw, 0.0))
-    else:
-        used = np.where(est_valid, raw, 0.0)
-    fb = camera.f * camera.baseline if camera else 1.0
-    doffs = camera.doffs if camera else 0.0
-    out: dict[str, dict[str, float]] = {}
-    for name, mask in criteria.items():
-        evaluated = mask & est_valid if policy == "ignore" else mask
-        D, E = d[evaluated], used[evaluated]
-        e = np.abs(E - D)
-        N = e.size
-
-        def per(x: float, N: int = N) -> float:
-            return x / N if N else math.nan
-
-        sze = float(np.abs(fb / (D + doffs + mu) - fb / (E + doffs + mu)).sum())
-        bmpre = float((e / D)[e > delta].sum())
-        ordered = np.sort(e)
-        out[name] = {
-            "n": float(mask.sum()),
-            "density": float(est_valid[mask].mean()) if mask.any() else math.nan,
-            "bmp": per(100.0 * np.count_nonzero(e > delta)),
-            "bmp_count": float(np.count_nonzero(e > delta)),
-            "bad_0.5": per(100.0 * np.count_nonzero(e > 0.5)),
-            "bad_2": per(100.0 * np.count_nonzero(e > 2)),
-            "bad_4": per(100.0 * np.count_nonzero(e > 4)),
-            "mae": per(e.sum()),
-            "mse": per((e**2).sum()),
-            "rmse": math.sqrt(per((e**2).sum())),
-            "mre": per((e / D).sum()),
-            "sze": sze,
-            "sze_mean": per(sze),
-            "bmpre": bmpre,
-            "bmpre_mean": per(bmpre),
-            "d1": per(100.0 * np.count_nonzero((e > 3) & (e > 0.05 * D))),
-            **{f"a{q}": float(ordered[N * q // 100]) if N else math.nan for q in (50, 90, 95, 99)},
-        }
-    return out
-
-
-def assert_matches(scores: Scores, expected: dict[str, dict[str, float]]) -> None:
-    """rtol 1e-9 for counts, percentages and quantiles; rtol 1e-6 for sums and means."""
-    for criterion, values in expected.items():
-        for measure, want in values.items():
-            have = float(scores[criterion][measure])
-            where = f"{criterion}/{measure} ({scores.policy}): library {have!r}, numpy {want!r}"
-            if math.isnan(want):
-                assert math.isnan(have), where
-            else:
-                rel = 1e-6 if measure in SUMS else 1e-9
-                assert math.isclose(have, want, rel_tol=rel, abs_tol=1e-9), where
-
-
-def zbuffer_occlusion(gt: np.ndarray, valid: np.ndarray, tolerance: float = 1.0) -> np.ndarray:
-    """Straightforward z-buffer: each row's largest disparity landing on each column."""
-    occluded = np.zeros(gt.shape, bool)
-    width = gt.shape[1]
-    for y in range(gt.shape[0]):
-        xs = np.flatnonzero(valid[y])
-        d = gt[y, xs].astype(np.float64)
-        target = np.floor(xs - d + 0.5).astype(np.int64)
-        inside = (target >= 0) & (target < width)
-        zbuffer = np.full(width, -np.inf)
-        np.maximum.at(zbuffer, target[inside], d[inside])
-        hidden = np.zeros(xs.size, bool)
-        hidden[inside] = zbuffer[target[inside]] > d[inside] + tolerance
-        occluded[y, xs] = ~inside | hidden
-    return occluded
-
-
-def left_right_occlusion(gt: np.ndarray, right: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """MiddEval3's check: |D_L − D_R(t)| > 1, t = C round(x − D_L) outside, or D_R(t) unknown."""
-    width = gt.shape[1]
-    ys, xs = np.nonzero(valid)
-    d = gt[ys, xs].astype(np.float64)
-    shift = xs - d
-    target = (np.sign(shift) * np.floor(np.abs(shift) + 0.5)).astype(np.int64)  # C round
-    inside = (target >= 0) & (target < width)
-    seen = right[ys, np.clip(target, 0, width - 1)].astype(np.float64)
-    known = np.isfinite(seen) & (seen > 0)
-    occluded = np.zeros(gt.shape, bool)
-    occluded[ys, xs] = ~inside | ~known | (np.abs(d - np.where(known, seen, 0.0)) > 1.0)
-    return occluded
-
-
-def near_jumps(gt: np.ndarray, valid: np.ndarray, gap: float = 2.0, size: int = 9) -> np.ndarray:
-    """Within a size×size square of a 4-neighbour jump > gap between two valid points."""
-    d = np.where(valid, gt, 0.0).astype(np.float64)
-    jump = np.zeros(gt.shape, bool)
-    horizontal = valid[:, 1:] & valid[:, :-1] & (np.abs(np.diff(d, axis=1)) > gap)
-    vertical = valid[1:] & valid[:-1] & (np.abs(np.diff(d, axis=0)) > gap)
-    jump[:, 1:] |= horizontal
-    jump[:, :-1] |= horizontal
-    jump[1:] |= vertical
-    jump[:-1] |= vertical
-    # square dilation as a 2-D prefix sum: any jump inside the window
-    r = size // 2
-    padded = np.pad(jump.astype(np.int64), ((r + 1, r), (r + 1, r)))
-    table = padded.cumsum(0).cumsum(1)
-    h, w = gt.shape
-    window = (
-        table[size:, size:][:h, :w]
-        - table[:-size, size:][:h, :w]
-        - table[size:, :-size][:h, :w]
-        + table[:-size, :-size][:h, :w]
-    )
-    return window > 0
-
-
-def plain_lloyd(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lloyd's 3-means on exact values from 1/6, 1/2, 5/6 of the range (ties to the lower)."""
-    v = values.astype(np.float64)
-    lo, hi = v.min(), v.max()
-    centroids = np.array([lo + (hi - lo) / 6, lo + (hi - lo) / 2, lo + 5 * (hi - lo) / 6])
-    for _ in range(1000):
-        low, high = (centroids[:2] + centroids[1:]) / 2
-        labels = np.where(v <= low, 0, np.where(v <= high, 1, 2))
-        updated = np.array(
-            [v[labels == k].mean() if (labels == k).any() else centroids[k] for k in range(3)]
-        )
-        if np.array_equal(updated, centroids):
-            break
-        centroids = updated
-    return labels, centroids
-
-
-def optimal_three_clustering(values: np.ndarray) -> tuple[float, tuple[float, float]]:
-    """Global optimum of 1-D 3-clustering (least squares) by trying every pair of cuts.
-
-    Optimal 1-D clusters are intervals of the sorted distinct values, so with k distinct
-    values there are (k−1)(k−2)/2 candidates: few for 8-bit Middlebury GT.
-    """
-    distinct, weight = np.unique(values.astype(np.float64), return_counts=True)
-    cw = np.concatenate([[0.0], np.cumsum(weight)])
-    cs = np.concatenate([[0.0], np.cumsum(weight * distinct)])
-    cq = np.concatenate([[0.0], np.cumsum(weight * distinct**2)])
-
-    def sse(a: np.ndarray | int, b: np.ndarray | int) -> np.ndarray:
-        return (cq[b] - cq[a]) - (cs[b] - cs[a]) ** 2 / (cw[b] - cw[a])
-
-    k = distinct.size
-    i, j = np.triu_indices(k, 1)  # first cluster [0, i), second [i, j), third [j, k)
-    keep = i >= 1
-    i, j = i[keep], j[keep]
-    total = sse(0, i) + sse(i, j) + sse(j, k)
-    best = int(np.argmin(total))
-    return float(total[best]), (float(distinct[i[best] - 1]), float(distinct[j[best] - 1]))
-
-
-def within_cluster_sse(values: np.ndarray, labels: list[np.ndarray]) -> float:
-    return float(sum(((values[m] - values[m].mean()) ** 2).sum() for m in labels if m.any()))
 
 
 # ----------------------------------------------------------- Middlebury 2001/2003 masks

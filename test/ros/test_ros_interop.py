@@ -157,9 +157,7 @@ def test_dds_player_to_rclpy_subscriber_is_byte_exact(ros_factory: Any, tmp_path
             assert sent[len(recorded) :] == bytes(-len(recorded) % 4), topic
 
 
-def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(
-    ros_factory: Any, tmp_path: Path
-) -> None:
+def test_rclpy_publisher_to_dds_live_to_rclpy_subscriber(ros_factory: Any, tmp_path: Path) -> None:
     bag = sample_bag()
     config = sample_config(bag)
     reference = bag_reference(bag, tmp_path / "bag")

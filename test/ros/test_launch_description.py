@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from ros_support import launch_unavailable
 
-LAUNCH_DIR = Path(__file__).resolve().parents[1] / "launch_scripts"
+LAUNCH_DIR = Path(__file__).resolve().parents[2] / "launch_scripts"
 UNAVAILABLE = launch_unavailable()
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_bag_pipeline import METHODS, bag_args, database_content
+from bag_support import METHODS, bag_args, database_content
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.errors import InputError

@@ -359,7 +359,17 @@ def test_eval_with_only_legacy_criteria_says_why_there_is_no_model(
     write_pfm(gt, np.full((30, 40), 20.0, np.float32))
     est = tmp_path / "est.pfm"
     write_pfm(est, np.full((30, 40), 21.5, np.float32))
-    args = ["eval", "--gt", str(gt), "--est", f"a={est}", "--est", f"b={gt}", "--criteria", "legacy"]
+    args = [
+        "eval",
+        "--gt",
+        str(gt),
+        "--est",
+        f"a={est}",
+        "--est",
+        f"b={gt}",
+        "--criteria",
+        "legacy",
+    ]
     assert main(args) == 0
     assert "no A* Groups: the legacy criteria overlap" in capsys.readouterr().out
     assert main([*args, "--json"]) == 0

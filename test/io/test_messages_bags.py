@@ -767,9 +767,19 @@ def test_plain_mcap_checks_chunk_crcs(pristine, tmp_path) -> None:
         read_everything(path)
 
 
+DETECTS_EVERY_SCRIBBLE = ("mcap",)
+"""Formats whose reader checks every byte it reads (plain MCAP: chunk CRCs); the others hold
+payload bytes no checksum covers, so some damage reads as other values."""
+
+
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_scribbled_storage_raises_only_input_errors(pristine, tmp_path, fmt) -> None:
-    """Garbage written anywhere: the bag reads (undetectable damage) or raises InputError."""
+    """Garbage written anywhere: the bag reads (undetectable damage) or raises InputError.
+
+    The damage must be found where it can be: every scribble in a CRC-checked format, and at
+    least one of the twelve (seeded) scribbles in the others, so a reader that accepts
+    everything fails here.
+    """
     rng = np.random.default_rng(7)
     messages: list[str] = []
     for trial in range(12):
@@ -783,5 +793,23 @@ def test_scribbled_storage_raises_only_input_errors(pristine, tmp_path, fmt) -> 
         try:
             read_everything(path)
         except InputError as error:
-            messages.append(str(error))
+            messages.append(str(error).replace(str(path), "BAG", 1))
+    assert all(message.startswith("BAG: ") for message in messages), messages  # names the bag
     assert all("\n" not in message for message in messages)
+    if fmt in DETECTS_EVERY_SCRIBBLE:
+        assert len(messages) == 12, f"{12 - len(messages)} scribbles read without an error"
+    else:
+        assert messages, "no scribble was detected"
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_scribbled_file_header_is_an_input_error(pristine, tmp_path, fmt) -> None:
+    """The storage file's first 64 bytes (its magic) overwritten: no format reads that."""
+    path = copy_bag(pristine, fmt, tmp_path)
+    storage = path if path.is_file() else next(path.glob("*.[dm][bc]*"))
+    data = bytearray(storage.read_bytes())
+    data[:64] = b"\xa5" * 64
+    storage.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=f"^{path}: cannot read bag") as error:
+        read_everything(path)
+    assert "\n" not in str(error.value)

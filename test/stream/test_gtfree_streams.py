@@ -1,6 +1,6 @@
 """Ground-truth-free measures in the stream core and ``dispeval bag`` (the sample bag's images).
 
-The rclpy node is tested in test_ros_nodes.py and ``dispeval live`` over DDS in test_dds.py
+The rclpy node is tested in test_ros_gt_free.py and ``dispeval live`` over DDS in test_dds.py
 (modes ``images`` and ``no-gt``), both against the same ``dispeval bag`` numbers.
 """
 
