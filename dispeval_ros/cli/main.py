@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from types import FrameType
 from typing import NoReturn
 
-from dispeval_ros import __version__
+from dispeval_ros.version import __version__
 from dispeval_ros.cli import (
     bag_cmd,
     demo_cmd,
