@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # buildtools, also und
 from buildtools.requirements import requirements
 
 PACKAGE = "dispeval_ros"
-COMPILE_AHEAD = "from dispeval_ros.jitcache import compile_ahead; compile_ahead()"
+COMPILE_AHEAD = "from dispeval_ros.cli.compile_ahead import compile_ahead; compile_ahead()"
 
 
 class BuildPyWithKernels(build_py):
@@ -114,7 +114,7 @@ setup(
         "report": REPORT,
         "dask": DASK,
         "test": TEST,
-        "dev": [*TEST, "ruff>=0.5", "mypy>=1.8"],
+        "dev": [*TEST, "ruff>=0.5", "mypy>=1.8", "import-linter>=2.0"],
     },
     zip_safe=True,
     maintainer="dispeval_ros developers",

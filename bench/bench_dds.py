@@ -59,7 +59,7 @@ def publish(domain: int, seconds: float, rate: float, distinct: int) -> None:
     """The publisher process: render, wait for the evaluator, publish at the rate."""
     from dispeval_ros.dds.transport import DdsTransport
     from dispeval_ros.dds.wire import PLAYBACK
-    from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+    from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
     from dispeval_ros.testbed import default_methods, make_driving_sequence
 
     transport = DdsTransport(domain)
@@ -142,7 +142,7 @@ def micro(domain: int, repeats: int = 40) -> None:
     from dispeval_ros.dds.idl import struct_for
     from dispeval_ros.dds.transport import DdsTransport
     from dispeval_ros.dds.wire import PLAYBACK, SENSOR_DATA
-    from dispeval_ros.io.messages import disparity_to_msg
+    from dispeval_ros.io.encoders import disparity_to_msg
 
     first, second = DdsTransport(domain), DdsTransport(domain)
     try:

@@ -20,7 +20,7 @@ import time
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
-from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.runner import LiveEvaluator

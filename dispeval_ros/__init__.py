@@ -9,28 +9,33 @@ ones, and Pareto-dominance models (A*, A* Groups, front reduction). The public A
     scores["interior"]["sze"], scores["interior"]["n"]
 """
 
-from dispeval_ros.core import (
-    PROTOCOLS,
-    Camera,
-    Evaluator,
-    GroundTruthFree,
-    ImagePair,
-    ModelResult,
-    Partition,
-    Protocol,
-    Reference,
-    Scores,
-    astar_groups,
-    evaluate_frame,
-    evaluate_models,
-    front_reduction,
-    measure_consistency,
-    middlebury_ranks,
-    pareto_front,
-    summarize_frames,
-)
+from typing import TYPE_CHECKING
+
 from dispeval_ros.errors import DispevalError
+from dispeval_ros.lazy import lazy_exports
 from dispeval_ros.version import __version__
+
+if TYPE_CHECKING:
+    from dispeval_ros.core import (
+        PROTOCOLS,
+        Camera,
+        Evaluator,
+        GroundTruthFree,
+        ImagePair,
+        ModelResult,
+        Partition,
+        Protocol,
+        Reference,
+        Scores,
+        astar_groups,
+        evaluate_frame,
+        evaluate_models,
+        front_reduction,
+        measure_consistency,
+        middlebury_ranks,
+        pareto_front,
+        summarize_frames,
+    )
 
 __all__ = [
     "PROTOCOLS",
@@ -54,3 +59,7 @@ __all__ = [
     "pareto_front",
     "summarize_frames",
 ]
+
+# the evaluation names load numba and OpenCV: from ``dispeval_ros.core`` on first use, not with
+# ``import dispeval_ros`` (DispevalError and __version__, bound above, never reach the table)
+__getattr__, __dir__ = lazy_exports(globals(), {"dispeval_ros.core": __all__})

@@ -8,6 +8,17 @@ traceback and exit with status 2.
 
 from __future__ import annotations
 
+__all__ = [
+    "CalibrationError",
+    "ConfigurationError",
+    "DispevalError",
+    "EmptyGroundTruthError",
+    "InputError",
+    "LayoutError",
+    "ResultsConflictError",
+    "ShapeMismatchError",
+]
+
 
 class DispevalError(Exception):
     """Base class of all user-facing errors."""

@@ -8,15 +8,14 @@ kernels then cache in a per-user folder under the temporary directory instead. A
 ``NUMBA_CACHE_DIR`` always wins.
 
 A wheel (``pip install .``) and ``colcon build`` carry the kernels compiled already:
-``setup.py`` runs :func:`compile_ahead` on the built package, so its ``__pycache__`` holds
-them. numba keys them by source content, interpreter and CPU, so they load wherever the
-package was built; elsewhere they compile on first use.
+``setup.py`` runs :func:`dispeval_ros.cli.compile_ahead.compile_ahead` (beside the CLI it
+runs, so this module imports nothing of the package) on the built package, so its
+``__pycache__`` holds them. numba keys them by source content, interpreter and CPU, so they load
+wherever the package was built; elsewhere they compile on first use.
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import tempfile
 from pathlib import Path
@@ -55,15 +54,3 @@ def ensure_cache_location(source_dir: Path = PACKAGE_DIR / "core") -> str | None
     numba.config.CACHE_DIR = str(fallback)  # type: ignore[attr-defined]
     return str(fallback)
 
-
-def compile_ahead() -> None:
-    """Compile (into their cache) the kernels a first run needs: the demo, run quietly once.
-
-    The demo scores a bag offline, in robot mode and without GT, so it calls every kernel
-    with the argument types of real runs; what it leaves out compiles on first use.
-    """
-    from dispeval_ros.cli.main import main
-
-    with tempfile.TemporaryDirectory() as out, contextlib.redirect_stdout(io.StringIO()):
-        if main(["demo", "--out", out, "--json"]) != 0:
-            raise SystemExit("the demo failed: kernels not compiled ahead")

@@ -16,8 +16,8 @@ import numpy as np
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.measures import applies
 from dispeval_ros.core.objectives import default_objective_measures
+from dispeval_ros.core.records import MatchCounts
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.store import MatchCounts
 
 GRANULARITIES = ("sequence", "frame")
 

@@ -10,7 +10,6 @@ from collections.abc import Sequence
 from types import FrameType
 from typing import NoReturn
 
-from dispeval_ros import __version__
 from dispeval_ros.cli import (
     bag_cmd,
     demo_cmd,
@@ -23,6 +22,7 @@ from dispeval_ros.cli import (
     report_cmd,  # the interactive HTML report
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
+from dispeval_ros.version import __version__
 
 COMMANDS = (
     eval_cmd,

@@ -1,35 +1,94 @@
 """I/O adapters around the core: files, dataset folders, ROS messages, bags, results database."""
 
-from dispeval_ros.io.bags import BagSource, BagWriter, TopicInfo, require_topic
-from dispeval_ros.io.calib import read_calib
-from dispeval_ros.io.files import (
-    read_disparity,
-    read_mask,
-    read_pfm,
-    read_stereo_pair,
-    write_disparity_png16,
-    write_pfm,
+from typing import TYPE_CHECKING
+
+from dispeval_ros.lazy import lazy_exports
+
+# the adapters (OpenCV, rosbags, SQLite) load when a name is first used
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "dispeval_ros.io.bags": (
+            "BagSource",
+            "BagWriter",
+            "TopicInfo",
+            "require_topic",
+        ),
+        "dispeval_ros.io.calib": ("read_calib",),
+        "dispeval_ros.io.files": (
+            "read_disparity",
+            "read_mask",
+            "read_pfm",
+            "read_stereo_pair",
+            "write_disparity_png16",
+            "write_pfm",
+        ),
+        "dispeval_ros.io.lidar": (
+            "LidarCalibration",
+            "read_extrinsic",
+            "read_lidar_calib",
+            "read_velodyne_bin",
+        ),
+        "dispeval_ros.io.messages": (
+            "CloudFrame",
+            "DisparityFrame",
+            "ImageFrame",
+            "camera_from_infos",
+            "cloud_from_msg",
+            "disparity_from_msg",
+            "gt_disparity",
+            "image_from_msg",
+            "stamp_ns",
+        ),
+        "dispeval_ros.io.scenes": (
+            "Scene",
+            "list_frames",
+            "load_scene",
+        ),
+        "dispeval_ros.io.store": (
+            "FrameScores",
+            "MatchCounts",
+            "Problem",
+            "ResultsStore",
+        ),
+        "dispeval_ros.io.tables": (
+            "read_objectives_csv",
+            "write_objectives_csv",
+        ),
+    },
 )
-from dispeval_ros.io.lidar import (
-    LidarCalibration,
-    read_extrinsic,
-    read_lidar_calib,
-    read_velodyne_bin,
-)
-from dispeval_ros.io.messages import (
-    CloudFrame,
-    DisparityFrame,
-    ImageFrame,
-    camera_from_infos,
-    cloud_from_msg,
-    disparity_from_msg,
-    gt_disparity,
-    image_from_msg,
-    stamp_ns,
-)
-from dispeval_ros.io.scenes import Scene, list_frames, load_scene
-from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
-from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.bags import BagSource, BagWriter, TopicInfo, require_topic
+    from dispeval_ros.io.calib import read_calib
+    from dispeval_ros.io.files import (
+        read_disparity,
+        read_mask,
+        read_pfm,
+        read_stereo_pair,
+        write_disparity_png16,
+        write_pfm,
+    )
+    from dispeval_ros.io.lidar import (
+        LidarCalibration,
+        read_extrinsic,
+        read_lidar_calib,
+        read_velodyne_bin,
+    )
+    from dispeval_ros.io.messages import (
+        CloudFrame,
+        DisparityFrame,
+        ImageFrame,
+        camera_from_infos,
+        cloud_from_msg,
+        disparity_from_msg,
+        gt_disparity,
+        image_from_msg,
+        stamp_ns,
+    )
+    from dispeval_ros.io.scenes import Scene, list_frames, load_scene
+    from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
+    from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
 
 __all__ = [
     "BagSource",

@@ -51,7 +51,7 @@ def local_workers(scheduler: str) -> int | None:
 
 def check_worker(paths: Sequence[str], version: str) -> str | None:
     """Run on each worker: why it cannot run the units (a bag it cannot read, another version)."""
-    from dispeval_ros import __version__
+    from dispeval_ros.version import __version__
 
     if __version__ != version:
         return f"runs dispeval {__version__}, the driver {version}; install the same version"

@@ -28,14 +28,14 @@ from dispeval_ros.core.projection import CloudFilter, project_cloud
 from dispeval_ros.core.transforms import StaticTransform, invert_rigid, matrix_from_pose
 from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchError
 from dispeval_ros.io.bags import BagWriter
-from dispeval_ros.io.files import read_disparity
-from dispeval_ros.io.messages import (
+from dispeval_ros.io.encoders import (
     camera_info_to_msg,
     cloud_to_msg,
     disparity_to_msg,
     image_to_msg,
     tf_static_to_msg,
 )
+from dispeval_ros.io.files import read_disparity
 from dispeval_ros.io.scenes import list_frames
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence

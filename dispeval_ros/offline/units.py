@@ -31,17 +31,11 @@ from pathlib import Path
 from queue import Full, Queue
 from typing import Any, TypeVar
 
+from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.io.store import (
-    FrameScores,
-    MatchCounts,
-    PreparedUnit,
-    Problem,
-    failure_record,
-    prepare_unit,
-)
+from dispeval_ros.io.store import PreparedUnit, failure_record, prepare_unit
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.join import FrameSet, JoinEvent
 

@@ -35,6 +35,7 @@ from dispeval_ros.core.projection import (
 )
 from dispeval_ros.core.transforms import TransformTree, rigid_matrix
 from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
+from dispeval_ros.io.grey import stereo_grey
 from dispeval_ros.io.messages import (
     DisparityFrame,
     camera_from_infos,
@@ -45,7 +46,6 @@ from dispeval_ros.io.messages import (
     rectified_camera_from_info,
     stamp_ns,
     static_transforms_from_msg,
-    stereo_grey,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
+from dispeval_ros.core.records import MatchCounts
 from dispeval_ros.errors import InputError
-from dispeval_ros.io.store import MatchCounts
 from dispeval_ros.stream.core import MethodCounts
 from dispeval_ros.stream.vectors import OK, StatusRecord
 

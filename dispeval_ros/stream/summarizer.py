@@ -17,9 +17,10 @@ import numpy as np
 
 from dispeval_ros.core import Scores
 from dispeval_ros.core.provenance import provenance_record
+from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
-from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
 from dispeval_ros.summary import RunSummary, summarize
 

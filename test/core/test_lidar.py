@@ -26,14 +26,13 @@ from dispeval_ros.core.transforms import (
     rigid_matrix,
 )
 from dispeval_ros.errors import CalibrationError, ConfigurationError, InputError
+from dispeval_ros.io.encoders import cloud_to_msg, tf_static_to_msg
 from dispeval_ros.io.files import read_disparity
 from dispeval_ros.io.lidar import read_extrinsic, read_lidar_calib, read_velodyne_bin
 from dispeval_ros.io.messages import (
     cloud_from_msg,
-    cloud_to_msg,
     rectified_camera_from_info,
     static_transforms_from_msg,
-    tf_static_to_msg,
 )
 
 KITTI_FRAMES = ("000010", "000043", "000112", "000150")

@@ -32,7 +32,7 @@ from dispeval_ros.dds import environment, wire
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of, vector_message
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import disparity_to_msg, image_to_msg
+from dispeval_ros.io.encoders import disparity_to_msg, image_to_msg
 from dispeval_ros.io.store import MatchCounts, ResultsStore
 from dispeval_ros.offline.make_bag import (
     CLOUD_TOPIC,

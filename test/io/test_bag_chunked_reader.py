@@ -22,7 +22,7 @@ from dispeval_ros.core.camera import Camera
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagSource, BagWriter, chunked_mcap, mcap_reader, rosbags_reader
 from dispeval_ros.io.bags.chunked_mcap import NotChunked, fast_then_slow
-from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
 
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
 REPO_BAGS = sorted(

@@ -17,18 +17,16 @@ from rosbags.typesys import Stores, get_typestore
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.errors import CalibrationError, ConfigurationError, InputError
 from dispeval_ros.io.bags import BagSource, BagWriter, TopicInfo, require_topic
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
 from dispeval_ros.io.messages import (
     IMAGE_ENCODINGS,
     DisparityFrame,
     ImageFrame,
     camera_from_info_and_baseline,
     camera_from_infos,
-    camera_info_to_msg,
     disparity_from_msg,
-    disparity_to_msg,
     gt_disparity,
     image_from_msg,
-    image_to_msg,
     stamp_ns,
 )
 

@@ -15,7 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from dispeval_ros.core import Camera
 from dispeval_ros.io.bags import BagWriter
-from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
 from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.units import UnitRows, evaluate_unit, plan_bag
 from dispeval_ros.stream.core import CoreConfig

@@ -20,15 +20,8 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import DEFAULT_MEASURES
 from dispeval_ros.io import write_pfm
 from dispeval_ros.io.bags import BagSource, BagWriter
-from dispeval_ros.io.messages import (
-    camera_from_infos,
-    camera_info_to_msg,
-    disparity_from_msg,
-    disparity_to_msg,
-    image_from_msg,
-    image_to_msg,
-    stamp_ns,
-)
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.messages import camera_from_infos, disparity_from_msg, image_from_msg, stamp_ns
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import (
     GT_TOPIC,

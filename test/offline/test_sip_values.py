@@ -26,7 +26,7 @@ from dispeval_ros import Camera, Evaluator, GroundTruthFree
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import DEFAULT_MEASURES
 from dispeval_ros.io import read_disparity, write_pfm
-from dispeval_ros.io.messages import camera_info_to_msg, disparity_to_msg, image_to_msg
+from dispeval_ros.io.encoders import camera_info_to_msg, disparity_to_msg, image_to_msg
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import methods_for
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore

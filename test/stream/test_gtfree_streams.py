@@ -18,7 +18,8 @@ from sample_feed import sample_bag, sample_config, stored_scores
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.gtfree import GroundTruthFree
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import disparity_from_msg, image_from_msg, image_to_msg, stamp_ns
+from dispeval_ros.io.encoders import image_to_msg
+from dispeval_ros.io.messages import disparity_from_msg, image_from_msg, stamp_ns
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_IMAGE, RIGHT_IMAGE
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 
@@ -168,7 +169,7 @@ def test_estimate_of_another_size_than_the_images_is_a_method_problem() -> None:
     core.push(LEFT_IMAGE, image_to_msg(typestore, left, stamp, "l", "mono8"))
     core.push(RIGHT_IMAGE, image_to_msg(typestore, left, stamp, "r", "mono8"))
     method, topic = next(iter(config.methods.items()))
-    from dispeval_ros.io.messages import disparity_to_msg
+    from dispeval_ros.io.encoders import disparity_to_msg
 
     disparity = disparity_to_msg(typestore, np.ones((20, 31), np.float32), stamp, "l", 1, 1, 0, 9)
     (frame_set,) = [*core.push(topic, disparity), *core.flush()]

@@ -20,7 +20,7 @@ from sample_feed import stored_scores
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.projection import CloudFilter, project_cloud, rectified_projection
 from dispeval_ros.core.transforms import StaticTransform, matrix_from_pose
-from dispeval_ros.io.messages import (
+from dispeval_ros.io.encoders import (
     camera_info_to_msg,
     cloud_to_msg,
     disparity_to_msg,

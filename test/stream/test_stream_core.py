@@ -13,7 +13,8 @@ from rosbags.typesys import Stores, get_typestore
 from sample_feed import bag_reference, expected_counts, robot_stream, sample_bag, sample_config
 
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import disparity_to_msg, image_to_msg, stamp_ns
+from dispeval_ros.io.encoders import disparity_to_msg, image_to_msg
+from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult

@@ -1,0 +1,46 @@
+"""Result records: what a scored frame, a problem and a method's match counts are.
+
+Plain frozen dataclasses, kept below storage so that the streaming, offline and summary
+layers share them without importing the SQLite module (:mod:`dispeval_ros.io.store` stores
+them; nothing here imports numpy or numba).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dispeval_ros.core.measures import Scores
+
+__all__ = ["FrameScores", "MatchCounts", "Problem"]
+
+
+@dataclass(frozen=True)
+class FrameScores:
+    """The scores of one method on one frame (``stamp`` in nanoseconds)."""
+
+    sequence: str
+    stamp: int
+    method: str
+    scores: Scores
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A per-frame problem worth reporting (decode error, size mismatch…), kept with the unit."""
+
+    sequence: str
+    stamp: int | None
+    method: str | None
+    message: str
+
+
+@dataclass(frozen=True)
+class MatchCounts:
+    """How a method's estimates met the ground truth: matched, unmatched, dropped, failed."""
+
+    matched: int
+    unmatched: int
+    dropped: int
+    failed: int

@@ -1,0 +1,49 @@
+"""Exporting a results database: every frame row as CSV."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+from dispeval_ros.errors import InputError
+from dispeval_ros.io.store.reader import ResultsReader
+
+
+class CsvExport(ResultsReader):
+    """The CSV export of :class:`~dispeval_ros.io.store.ResultsStore` (reads only)."""
+
+    def export_csv(self, path: Path) -> int:
+        """Write every frame row to CSV (NaN as an empty cell, floats exact); rows written."""
+        path = Path(path)
+        layout = self._current_layout()
+        measures = layout.measures if layout else ()
+        partial = path.with_name(path.name + ".partial")
+        written = 0
+        try:
+            with open(partial, "w", newline="", encoding="utf-8") as handle:
+                writer = csv.writer(handle)
+                writer.writerow(["sequence", "stamp", "method", "criterion", "n", *measures])
+                for row in self.frame_rows():
+                    writer.writerow(
+                        [row["sequence"], row["stamp"], row["method"], row["criterion"]]
+                        + [_cell(row[name]) for name in ("n", *measures)]
+                    )
+                    written += 1
+            os.replace(partial, path)
+        except OSError as error:
+            partial.unlink(missing_ok=True)
+            raise InputError(
+                f"{path}: cannot write the CSV file ({error.strerror or error})"
+            ) from None
+        return written
+
+    # -- internals ---------------------------------------------------------------------------
+
+
+def _cell(value: object) -> str:
+    """A CSV cell: empty for NaN, ``repr`` for numbers so they read back exactly."""
+    if isinstance(value, float):
+        return "" if math.isnan(value) else repr(value)
+    return str(value)
