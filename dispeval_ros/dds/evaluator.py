@@ -37,7 +37,6 @@ from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
     FLOAT64_MULTI_ARRAY,
     RESULTS,
-    SCORES_TOPIC,
     SENSOR_DATA,
     STATIC_TF,
     QosProfile,
@@ -47,6 +46,7 @@ from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
 from dispeval_ros.stream.delivery import Delivery, delivery_record
 from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.topics import SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     StatusRecord,
