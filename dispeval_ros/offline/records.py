@@ -15,12 +15,13 @@ from dispeval_ros.stream.core import CoreConfig
 
 
 def stream_topics(config: CoreConfig) -> list[str]:
-    """Every topic the evaluation reads (:attr:`CoreConfig.topics`, the readers' own list).
+    """Every topic the evaluation reads: :attr:`CoreConfig.topics`, the readers' own list.
 
-    Ground truth, methods, camera infos, /tf_static, images and right views: the provenance
-    hashes every stream that was scored.
+    Ground truth, methods, camera infos, /tf_static, images and right views, so the provenance
+    hashes every stream that was scored. The ground truth and the methods come first: the order
+    the records have always listed them in.
     """
-    return list(config.topics)
+    return list(dict.fromkeys([config.gt_topic, *config.methods.values(), *config.topics]))
 
 
 class BagStreams:

@@ -47,12 +47,12 @@ from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.summary import GRANULARITIES
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
 
 FORMAT_VERSION = 1
-GRANULARITIES = ("sequence", "frame")
 MAX_PROBLEMS = 2000
 """Problems listed in the report (the total is always given)."""
 DEFAULT_THUMBNAILS = 4
