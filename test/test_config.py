@@ -33,30 +33,18 @@ METHODS = {"sgbm": "/stereo/sgbm/disparity", "bm": "/stereo/bm/disparity"}
 INFOS = {"left_info_topic": "/left/camera_info", "right_info_topic": "/right/camera_info"}
 IMAGES = {"left_image_topic": "/left/image_rect", "right_image_topic": "/right/image_rect"}
 
-# CoreConfig field → (ROS parameter, how the parameter's default becomes the field's value)
-ROS_FIELDS: dict[str, tuple[str, Any]] = {
-    "gt_kind": ("gt_kind", str),
-    "cloud_filter": ("cloud_filter", str),
-    "criteria": ("criteria", tuple),
-    "missing": ("missing", str),
-    "delta": ("delta", float),
-    "mu": ("mu", float),
-    "tolerance_ns": ("sync_tolerance", lambda s: round(s * NS)),
-    "lateness_ns": ("lateness", lambda s: round(s * NS)),
-    "gt_free_criteria": ("gt_free_criteria", tuple),
+FIELDS: dict[str, tuple[str, str, Any]] = {
+    # CoreConfig field: (ROS parameter, argparse dest of bag/live, how their default becomes it)
+    "gt_kind": ("gt_kind", "gt_kind", str),
+    "cloud_filter": ("cloud_filter", "cloud_filter", str),
+    "criteria": ("criteria", "criteria", tuple),
+    "missing": ("missing", "missing", str),
+    "delta": ("delta", "delta", float),
+    "mu": ("mu", "mu", float),
+    "gt_free_criteria": ("gt_free_criteria", "gt_free_criteria", tuple),
 }
-# CoreConfig field → (argparse dest of `dispeval bag`/`live`, the option's default as the field)
-CLI_FIELDS: dict[str, tuple[str, Any]] = {
-    "gt_kind": ("gt_kind", str),
-    "cloud_filter": ("cloud_filter", str),
-    "criteria": ("criteria", tuple),
-    "missing": ("missing", str),
-    "delta": ("delta", float),
-    "mu": ("mu", float),
-    "tolerance_ns": ("tolerance", lambda ms: round(ms * 1_000_000)),
-    "lateness_ns": ("lateness", lambda ms: round(ms * 1_000_000)),
-    "gt_free_criteria": ("gt_free_criteria", tuple),
-}
+TIMES = {"tolerance_ns": ("sync_tolerance", "tolerance"), "lateness_ns": ("lateness", "lateness")}
+"""Time fields: the ROS parameter in s, the option in ms."""
 YAML_SAMPLE_VALUES = {"methods", "gt_topic", "left_camera_info", "right_camera_info"}
 """Parameters config/evaluator.yaml sets to the sample bag's topics instead of the defaults."""
 
@@ -197,8 +185,10 @@ def test_every_configuration_survives_its_record(config: CoreConfig) -> None:
 
 def test_ros_parameters_default_to_the_core_configuration() -> None:
     table = {p.name: p for p in param_table.EVALUATOR_PARAMETERS}
-    for field, (name, as_field) in ROS_FIELDS.items():
+    for field, (name, _dest, as_field) in FIELDS.items():
         assert as_field(table[name].default) == core_default(field), name
+    for field, (name, _dest) in TIMES.items():
+        assert round(table[name].default * NS) == core_default(field), name
     assert params.core_config(ros_values()) == CoreConfig(methods=METHODS, gt_topic="/gt")
 
 
@@ -207,8 +197,10 @@ def test_cli_options_default_to_the_core_configuration() -> None:
         args = build_parser().parse_args(
             [command, *(["drive.mcap"] if command == "bag" else []), "--method", "a=/a"]
         )
-        for field, (dest, as_field) in CLI_FIELDS.items():
+        for field, (_name, dest, as_field) in FIELDS.items():
             assert as_field(getattr(args, dest)) == core_default(field), (command, dest)
+        for field, (_name, dest) in TIMES.items():
+            assert round(getattr(args, dest) * 1_000_000) == core_default(field), dest
     config = cli_config(["--gt", "/gt", "--method", "a=/a"])
     assert config.measures is not None  # the CLI names the sequence measures explicitly
     assert config == CoreConfig(methods={"a": "/a"}, gt_topic="/gt", measures=config.measures)
@@ -312,3 +304,36 @@ def test_the_provenance_hashes_every_stream_read(
     assert "/tf_static" in read or "/stereo/right/image_rect" in read
     assert set(streams["topics"]) == read
     assert streams["topics"] == stream_digests(drive, stream_topics(config))
+
+
+def test_live_options_are_the_live_cores_and_the_ros_tables() -> None:
+    """Queue size, summary period and objectives: one default for ``live``, ROS and DDS."""
+    from dispeval_ros.dds.evaluator import DdsEvaluator
+    from dispeval_ros.stream.config import QUEUE_SIZE, field_default
+    from dispeval_ros.stream.runner import LiveEvaluator
+    from dispeval_ros.stream.summarizer import SummarizerConfig
+
+    assert inspect.signature(LiveEvaluator).parameters["queue_size"].default == QUEUE_SIZE
+    assert inspect.signature(DdsEvaluator).parameters["queue_size"].default == QUEUE_SIZE
+    args = build_parser().parse_args(["live", "--method", "a=/a", "--gt", "/gt"])
+    rows = {p.name: p.default for p in param_table.EVALUATOR_PARAMETERS}
+    rows.update({p.name: p.default for p in param_table.SUMMARIZER_PARAMETERS})
+    assert args.queue_size == rows["queue_size"] == QUEUE_SIZE
+    every_n = field_default(SummarizerConfig, "every_n")
+    assert args.summary_every == rows["summary_every"] == every_n
+    granularity = field_default(SummarizerConfig, "granularity")
+    assert args.objectives == rows["objectives"] == granularity
+
+
+def test_the_example_yaml_names_only_table_parameters() -> None:
+    """stereo_image_proc.yaml overrides some values on purpose; its names and types hold."""
+    document = yaml.safe_load((ROOT / "config" / "stereo_image_proc.yaml").read_text())
+    tables = {
+        "dispeval_evaluator": param_table.EVALUATOR_PARAMETERS,
+        "dispeval_summarizer": param_table.SUMMARIZER_PARAMETERS,
+    }
+    types = {"bool": bool, "integer": int, "double": float, "string": str, "string[]": list}
+    for node, table in tables.items():
+        rows = {p.name: p for p in table}
+        for key, value in document[node]["ros__parameters"].items():
+            assert isinstance(value, types[rows[key].kind]), (node, key)

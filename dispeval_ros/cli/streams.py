@@ -8,11 +8,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.stream.config import core_default
+from dispeval_ros.stream.config import core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
 
 if TYPE_CHECKING:
@@ -147,8 +146,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
             "(--left-image TOPIC --right-image TOPIC) for the ground-truth-free measures"
         )
     gt_free_criteria = common.gt_free_criteria(args)
-    if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
-        args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
+    if args.measures is None:  # named, so that they are stored with the results
+        args.measures = list(default_measures(cloud))
     evaluator = common.evaluator_from_args(args)
     left, right = args.camera_info if args.camera_info else (None, None)
     extrinsic = None

@@ -11,16 +11,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
-from dispeval_ros.stream.config import core_default
+from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
 from dispeval_ros.stream.join import LATENESS_RULE
-from dispeval_ros.summary import GRANULARITIES
+from dispeval_ros.stream.summarizer import SummarizerConfig
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"
 """``measures: [default]``: the core's default measures for the kind of ground truth."""
 
 ParamValue = bool | int | float | str | tuple[str, ...]
-_NS = 1_000_000_000
+NS_PER_SECOND = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -197,7 +197,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "sync_tolerance",
         DOUBLE,
-        core_default("tolerance_ns") / _NS,
+        core_default("tolerance_ns") / NS_PER_SECOND,
         "Largest |estimate stamp - ground-truth stamp| (s) for pairing frames whose header stamps "
         "differ (equal stamps always pair)",
         "[0, 60] s",
@@ -207,7 +207,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "lateness",
         DOUBLE,
-        core_default("lateness_ns") / _NS,
+        core_default("lateness_ns") / NS_PER_SECOND,
         f"{LATENESS_RULE[0].upper()}{LATENESS_RULE[1:]} (s)",
         "[0, 600] s",
         low=0.0,
@@ -216,7 +216,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
     Param(
         "queue_size",
         INTEGER,
-        4,
+        QUEUE_SIZE,
         "Joined frames waiting to be scored; when scoring falls behind the oldest waiting frame "
         "is dropped (and counted)",
         "[1, 100000]",
@@ -321,14 +321,14 @@ SUMMARIZER_PARAMETERS: tuple[Param, ...] = (
     Param(
         "objectives",
         STRING,
-        GRANULARITIES[0],
+        field_default(SummarizerConfig, "granularity"),
         "One objective per (criterion, sequence), or per (criterion, frame)",
         "sequence | frame",
     ),
     Param(
         "summary_every",
         INTEGER,
-        10,
+        field_default(SummarizerConfig, "every_n"),
         "Store the frames and recompute the groups every this many frames (a crash loses at most "
         "this many)",
         "[1, 1000000]",

@@ -27,6 +27,7 @@ from dispeval_ros.ros.param_table import (
     DOUBLE,
     EVALUATOR_PARAMETERS,
     INTEGER,
+    NS_PER_SECOND,
     STRING,
     STRING_ARRAY,
     SUMMARIZER_PARAMETERS,
@@ -63,7 +64,6 @@ __all__ = [  # the table's names stay importable from here
 ]
 
 _METHOD_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_NS = 1_000_000_000
 
 
 # -- values → configurations (no ROS) --------------------------------------------------------
@@ -271,7 +271,7 @@ def _seconds_to_ns(value: Any, name: str) -> int:
     seconds = float(value)
     if not (math.isfinite(seconds) and seconds >= 0):
         raise ConfigurationError(f"parameter {name} must be a number of seconds >= 0, got {value}")
-    return round(seconds * _NS)
+    return round(seconds * NS_PER_SECOND)
 
 
 def _positive_int(value: Any, name: str) -> int:

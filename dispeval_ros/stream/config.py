@@ -29,6 +29,8 @@ CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
+QUEUE_SIZE = 4
+"""Joined frames waiting to be scored by a live front end before the oldest is dropped."""
 GT_KINDS = ("disparity", "depth", "pointcloud", "none")
 """``none``: no ground truth; the left image is the frame clock and only the ground-truth-free
 measures are scored."""
@@ -297,12 +299,9 @@ class CoreConfig:
         LiDAR GT gets metric depth ranges (0-10, 10-30, 30+ m), the sparse boundary rule and
         the depth-domain measures by default.
         """
+        measures = self.measures if self.measures is not None else default_measures(self.pointcloud)
         if not self.pointcloud:
-            measures = self.measures if self.measures is not None else SEQUENCE_MEASURES
             return Evaluator(self.criteria, measures, self.missing, self.delta, self.mu)
-        measures = (
-            self.measures if self.measures is not None else (*SEQUENCE_MEASURES, *DEPTH_MEASURES)
-        )
         return Evaluator(
             self.criteria,
             measures,
@@ -314,12 +313,25 @@ class CoreConfig:
         )
 
 
-def core_default(name: str) -> Any:
-    """The default of a :class:`CoreConfig` field: what front ends show as their default."""
-    for item in dataclasses.fields(CoreConfig):
+def field_default(record: type, name: str) -> Any:
+    """The default of a dataclass field: the one value front ends show as their default."""
+    for item in dataclasses.fields(record):
         if item.name == name:
             if item.default is not dataclasses.MISSING:
                 return item.default
             if item.default_factory is not dataclasses.MISSING:
                 return item.default_factory()
-    raise KeyError(f"CoreConfig has no default for '{name}'")
+    raise KeyError(f"{record.__name__} has no default for '{name}'")
+
+
+def core_default(name: str) -> Any:
+    """The default of a :class:`CoreConfig` field (see :func:`field_default`)."""
+    return field_default(CoreConfig, name)
+
+
+def default_measures(pointcloud: bool) -> tuple[str, ...]:
+    """The measures scored when none are named: the summable ones, and LiDAR's depth ones.
+
+    Quantiles are opt-in for streams: not summable over frames, not cheap.
+    """
+    return (*SEQUENCE_MEASURES, *DEPTH_MEASURES) if pointcloud else SEQUENCE_MEASURES
