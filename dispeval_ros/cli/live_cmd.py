@@ -15,6 +15,8 @@ from dispeval_ros.cli import streams
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.dds import environment
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.config import QUEUE_SIZE, field_default
+from dispeval_ros.stream.summarizer import SummarizerConfig
 
 HELP = "evaluate live stereo streams (ROS 2 topics over Cyclone DDS, no ROS needed)"
 TRANSPORTS = ("dds",)
@@ -22,6 +24,7 @@ TRANSPORTS = ("dds",)
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``live``."""
+    every_n = field_default(SummarizerConfig, "every_n")
     parser = subparsers.add_parser(
         "live",
         help=HELP,
@@ -46,17 +49,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument(
         "--summary-every",
         type=int,
-        default=10,
+        default=every_n,
         metavar="N",
-        help="write frames and recompute the groups every N frames (default 10); the period "
+        help=f"write frames and recompute the groups every N frames (default {every_n}); the period "
         "grows when a summary would take more than a tenth of the time (long runs)",
     )
     run.add_argument(
         "--queue-size",
         type=int,
-        default=4,
+        default=QUEUE_SIZE,
         metavar="N",
-        help="joined frames waiting for scoring before the oldest is dropped (default 4)",
+        help=f"joined frames waiting for scoring before the oldest is dropped (default {QUEUE_SIZE})",
     )
     run.add_argument(
         "--duration", type=float, default=None, metavar="S", help="stop after S seconds"
@@ -81,8 +84,9 @@ def run_command(args: argparse.Namespace) -> int:
 
     from dispeval_ros.dds.evaluator import warm_up
     from dispeval_ros.dds.session import LiveSession
-    from dispeval_ros.dds.wire import GROUPS_TOPIC, SCORES_TOPIC, vector_topic
+    from dispeval_ros.dds.wire import vector_topic
     from dispeval_ros.stream.summarizer import SummarizerConfig
+    from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
     from dispeval_ros.stream.vectors import AlarmThresholds
 
     for method in config.methods:

@@ -8,14 +8,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.config import core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
+
+_NS_PER_MS = 1_000_000
 
 
 def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
@@ -46,7 +48,7 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     topics.add_argument(
         "--gt-kind",
         choices=("disparity", "depth"),
-        default="disparity",
+        default=core_default("gt_kind"),
         help="ground truth is disparity (32FC1 px, 16UC1 / scale) or depth (32FC1 m, 16UC1 mm)",
     )
     topics.add_argument(
@@ -61,11 +63,11 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     )
     topics.add_argument(
         "--cloud-filter",
-        default=str(CloudFilter()),
+        default=core_default("cloud_filter"),
         metavar="W,G",
         help="with --gt-cloud: drop a point when a point in its W×W pixel window is nearer by "
         f"more than the relative gap G (LiDAR–camera parallax); '0' disables "
-        f"(default {CloudFilter()})",
+        f"(default {core_default('cloud_filter')})",
     )
     topics.add_argument(
         "--left-image",
@@ -82,14 +84,19 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
         help="a method's right-view DisparityImage topic, for its left-right inconsistency (lrc)",
     )
     common.add_gt_free_criteria_option(topics)
+    tolerance_ms = core_default("tolerance_ns") / _NS_PER_MS
     topics.add_argument(
-        "--tolerance", type=float, default=10.0, help="stamp join tolerance in ms (default 10)"
+        "--tolerance",
+        type=float,
+        default=tolerance_ms,
+        help=f"stamp join tolerance in ms (default {tolerance_ms:g})",
     )
+    lateness_ms = core_default("lateness_ns") / _NS_PER_MS
     topics.add_argument(
         "--lateness",
         type=float,
-        default=1000.0,
-        help=f"{LATENESS_RULE} (ms, default 1000)",
+        default=lateness_ms,
+        help=f"{LATENESS_RULE} (ms, default {lateness_ms:g})",
     )
     common.add_evaluation_options(parser)
     run = parser.add_argument_group("run")
@@ -126,7 +133,9 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
             f"--depth-ranges is not available for {what} yet; use the 3-means depth criteria"
         )
     cloud = args.gt_cloud is not None
-    if not cloud and (args.extrinsic is not None or args.cloud_filter != str(CloudFilter())):
+    if not cloud and (
+        args.extrinsic is not None or args.cloud_filter != core_default("cloud_filter")
+    ):
         raise ConfigurationError("--extrinsic and --cloud-filter go with --gt-cloud")
     if (args.left_image is None) != (args.right_image is None):
         raise ConfigurationError("give both --left-image and --right-image, or neither")
@@ -137,8 +146,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
             "(--left-image TOPIC --right-image TOPIC) for the ground-truth-free measures"
         )
     gt_free_criteria = common.gt_free_criteria(args)
-    if args.measures is None:  # quantiles are opt-in for sequences: not summable, not cheap
-        args.measures = list(SEQUENCE_MEASURES) + (list(DEPTH_MEASURES) if cloud else [])
+    if args.measures is None:  # named, so that they are stored with the results
+        args.measures = list(default_measures(cloud))
     evaluator = common.evaluator_from_args(args)
     left, right = args.camera_info if args.camera_info else (None, None)
     extrinsic = None
@@ -164,8 +173,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         missing=evaluator.missing,
         delta=evaluator.delta,
         mu=evaluator.mu,
-        tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * 1e6),
-        lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * 1e6),
+        tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
+        lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)

@@ -37,16 +37,17 @@ from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
     FLOAT64_MULTI_ARRAY,
     RESULTS,
-    SCORES_TOPIC,
     SENSOR_DATA,
     STATIC_TF,
     QosProfile,
     vector_topic,
 )
 from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.stream.config import QUEUE_SIZE
 from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
 from dispeval_ros.stream.delivery import Delivery, delivery_record
 from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.topics import SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     StatusRecord,
@@ -90,7 +91,7 @@ class DdsEvaluator:
         config: CoreConfig,
         *,
         alarms: AlarmThresholds | None = None,
-        queue_size: int = 4,
+        queue_size: int = QUEUE_SIZE,
         subscription: QosProfile = SENSOR_DATA,
         on_result: Callable[[FrameResult], None] | None = None,
         on_error: Callable[[str], None] | None = None,

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from dispeval_ros.dds.evaluator import DdsEvaluator
 from dispeval_ros.dds.summarizer import DdsSummarizer
 from dispeval_ros.dds.transport import DdsTransport
+from dispeval_ros.stream.config import QUEUE_SIZE
 from dispeval_ros.stream.core import CoreConfig, MethodCounts
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.vectors import AlarmThresholds
@@ -48,7 +49,7 @@ class LiveSession:
         run_config: Mapping[str, object],
         *,
         alarms: AlarmThresholds | None = None,
-        queue_size: int = 4,
+        queue_size: int = QUEUE_SIZE,
         on_error: Callable[[str], None] | None = None,
     ) -> None:
         self.transport = DdsTransport(domain)

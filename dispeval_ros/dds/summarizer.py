@@ -34,14 +34,13 @@ from dispeval_ros.dds.evaluator import MIN_RESTART_NS
 from dispeval_ros.dds.transport import DdsTransport, RawWriter, Received
 from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
-    GROUPS_TOPIC,
     LATCHED,
-    SCORES_TOPIC,
     SUMMARIZER_INPUT,
 )
 from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
+from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC, VECTOR_LEAF, method_topic  # noqa: F401  (re-exported)
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -28,8 +29,6 @@ CDR_LE_HEADER = b"\x00\x01\x00\x00"
 """Encapsulation of the payloads ROS 2 nodes publish: CDR (XCDR1), little-endian, no options."""
 CDR_BE_HEADER = b"\x00\x00\x00\x00"
 
-SCORES_TOPIC = "/dispeval/scores"
-GROUPS_TOPIC = "/dispeval/groups"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 
@@ -127,7 +126,7 @@ def vector_topic(method: str) -> str:
             f"method name '{method}' cannot be part of a ROS topic name; "
             "use letters, digits and '_' (not starting with a digit)"
         )
-    return f"/dispeval/{method}/vector"
+    return method_topic(method, VECTOR_LEAF)
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,13 @@ from dispeval_ros.stream.core import CoreConfig
 
 
 def stream_topics(config: CoreConfig) -> list[str]:
-    """Every topic the evaluation reads: ground truth, methods, camera infos."""
-    topics = [config.gt_topic, *config.methods.values()]
-    topics += [t for t in (config.left_info_topic, config.right_info_topic) if t]
-    return list(dict.fromkeys(topics))
+    """Every topic the evaluation reads: :attr:`CoreConfig.topics`, the readers' own list.
+
+    Ground truth, methods, camera infos, /tf_static, images and right views, so the provenance
+    hashes every stream that was scored. The ground truth and the methods come first: the order
+    the records have always listed them in.
+    """
+    return list(dict.fromkeys([config.gt_topic, *config.methods.values(), *config.topics]))
 
 
 class BagStreams:

@@ -43,12 +43,12 @@ from dispeval_ros.report.recipes import (  # recipe_values: also from here, its 
     measure_recipe,
     recipe_values,  # noqa: F401
 )
+from dispeval_ros.summary import GRANULARITIES
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
 
 FORMAT_VERSION = 1
-GRANULARITIES = ("sequence", "frame")
 MAX_PROBLEMS = 2000
 """Problems listed in the report (the total is always given)."""
 DEFAULT_THUMBNAILS = 4
@@ -444,31 +444,14 @@ def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from a run's stored configuration."""
     from dispeval_ros.stream.core import CoreConfig
 
-    methods = config.get("methods")
-    gt_topic = config.get("gt_topic")
-    if not isinstance(methods, Mapping) or not isinstance(gt_topic, str):
+    if not isinstance(config.get("methods"), Mapping) or not isinstance(
+        config.get("gt_topic"), str
+    ):
         raise InputError(
             "the results do not record the method and ground-truth topics, so the bag frames "
             "cannot be scored again for thumbnails (use results written by 'dispeval bag')"
         )
-    left, right = (config.get("camera_info") or [None, None])[:2]
-    options: dict[str, Any] = {}
-    for key in ("gt_kind", "gt_scale", "missing", "delta", "mu", "tolerance_ns", "lateness_ns"):
-        if config.get(key) is not None:
-            options[key] = config[key]
-    if config.get("cloud_filter") is not None:  # point-cloud GT
-        options["cloud_filter"] = str(config["cloud_filter"])
-    if config.get("extrinsic"):
-        options["extrinsic"] = tuple(float(v) for v in config["extrinsic"])
-    if config.get("criteria"):
-        options["criteria"] = tuple(config["criteria"])
-    return CoreConfig(
-        methods=dict(methods),
-        gt_topic=gt_topic,
-        left_info_topic=left,
-        right_info_topic=right,
-        **options,
-    )
+    return CoreConfig.from_record(config)
 
 
 def _png_uri(rgb: np.ndarray, max_width: int) -> str:

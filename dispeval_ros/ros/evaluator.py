@@ -50,12 +50,9 @@ from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.ros import convert, static_tf
-from dispeval_ros.ros.params import (
-    EVALUATOR_PARAMETERS,
-    declare_parameters,
-    evaluator_options,
-    run_node,
-)
+from dispeval_ros.ros.lifecycle import run_node
+from dispeval_ros.ros.param_table import EVALUATOR_PARAMETERS
+from dispeval_ros.ros.params import declare_parameters, evaluator_options
 from dispeval_ros.stream.core import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
@@ -68,6 +65,14 @@ from dispeval_ros.stream.delivery import delivery_record
 from dispeval_ros.stream.images import colour_error
 from dispeval_ros.stream.replay import replay
 from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.topics import (
+    ERROR_COLOR_LEAF,
+    ERROR_LEAF,
+    SCORES_TOPIC,
+    VECTOR_LABELS_LEAF,
+    VECTOR_LEAF,
+    method_topic,
+)
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     problem_status,
@@ -77,7 +82,6 @@ from dispeval_ros.stream.vectors import (
 )
 
 NODE_NAME = "dispeval_evaluator"
-SCORES_TOPIC = "/dispeval/scores"
 SCORES_DEPTH = 1000
 """Scores arrays kept for a slow (reliable) subscriber: about a minute at 15 Hz, a few MB."""
 SCORES_QOS = QoSProfile(
@@ -111,11 +115,6 @@ _MESSAGE_CLASSES = {
 }
 
 
-def method_topic(method: str, leaf: str) -> str:
-    """``/dispeval/METHOD/LEAF``: where a method's vector and error images go."""
-    return f"/dispeval/{method}/{leaf}"
-
-
 class EvaluatorNode(Node):
     """Subscriptions (or a bag replay) → :class:`LiveEvaluator` → result publishers."""
 
@@ -145,11 +144,11 @@ class EvaluatorNode(Node):
         methods = list(self.config.methods)
         self._scores_pub = self.create_publisher(DiagnosticArray, SCORES_TOPIC, SCORES_QOS)
         self._vector_pubs = {
-            m: self.create_publisher(Float64MultiArray, method_topic(m, "vector"), RESULTS_QOS)
+            m: self.create_publisher(Float64MultiArray, method_topic(m, VECTOR_LEAF), RESULTS_QOS)
             for m in methods
         }
         self._label_pubs = {
-            m: self.create_publisher(String, method_topic(m, "vector_labels"), LATCHED_QOS)
+            m: self.create_publisher(String, method_topic(m, VECTOR_LABELS_LEAF), LATCHED_QOS)
             for m in methods
         }
         self._error_pubs: dict[str, Any] = {}
@@ -157,10 +156,10 @@ class EvaluatorNode(Node):
         if self.options.error_images:
             for m in methods:
                 self._error_pubs[m] = self.create_publisher(
-                    Image, method_topic(m, "error"), RESULTS_QOS
+                    Image, method_topic(m, ERROR_LEAF), RESULTS_QOS
                 )
                 self._colour_pubs[m] = self.create_publisher(
-                    Image, method_topic(m, "error_color"), RESULTS_QOS
+                    Image, method_topic(m, ERROR_COLOR_LEAF), RESULTS_QOS
                 )
 
         self._live = LiveEvaluator(

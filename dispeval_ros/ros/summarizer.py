@@ -34,21 +34,17 @@ from dispeval_ros.core import Scores
 from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.ros import convert
-from dispeval_ros.ros.evaluator import SCORES_DEPTH, SCORES_TOPIC
-from dispeval_ros.ros.params import (
-    SUMMARIZER_PARAMETERS,
-    declare_parameters,
-    ros_advice,
-    run_node,
-    summarizer_options,
-)
+from dispeval_ros.ros.evaluator import SCORES_DEPTH
+from dispeval_ros.ros.lifecycle import run_node
+from dispeval_ros.ros.param_table import SUMMARIZER_PARAMETERS
+from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_options
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
+from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
-GROUPS_TOPIC = "/dispeval/groups"
 SCORES_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=SCORES_DEPTH,

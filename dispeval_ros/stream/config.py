@@ -1,0 +1,337 @@
+"""What an evaluation reads and how it scores it: :class:`CoreConfig`, its defaults and topics.
+
+Every front end (``dispeval bag``/``live``, the ROS and DDS nodes, the report) builds this one
+record: its field defaults are the defaults the options, the ROS parameter table and
+``config/evaluator.yaml`` show (pinned by test/test_config.py), its checks are the rules every
+front end enforces, :attr:`CoreConfig.topics` is the one list of the topics read (subscribed,
+replayed, checked and hashed for the provenance), and :meth:`CoreConfig.from_record` reads back
+what :meth:`CoreConfig.as_record` stored with the results.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
+from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, Evaluator
+from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GT_FREE_SCORED, GroundTruthFree
+from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
+from dispeval_ros.core.projection import CloudFilter
+from dispeval_ros.core.transforms import rigid_matrix
+from dispeval_ros.errors import ConfigurationError
+
+DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
+IMAGE_TYPE = "sensor_msgs/msg/Image"
+CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+TF_STATIC_TOPIC = "/tf_static"
+QUEUE_SIZE = 4
+"""Joined frames waiting to be scored by a live front end before the oldest is dropped."""
+GT_KINDS = ("disparity", "depth", "pointcloud", "none")
+"""``none``: no ground truth; the left image is the frame clock and only the ground-truth-free
+measures are scored."""
+LEFT_IMAGE_KEY = "<left image>"
+RIGHT_IMAGE_KEY = "<right image>"
+RIGHT_VIEW_KEY = "<right view> "
+"""Join keys of the images and of each method's right-view disparity (``RIGHT_VIEW_KEY + name``):
+joined with the ground truth like a method, never counted as one."""
+
+
+@dataclass(frozen=True)
+class CoreConfig:
+    """What to evaluate: topics, ground-truth encoding, evaluation options, sync."""
+
+    methods: Mapping[str, str]
+    gt_topic: str
+    gt_kind: str = "disparity"
+    gt_scale: float | None = None
+    left_info_topic: str | None = None
+    right_info_topic: str | None = None
+    criteria: Sequence[str] = DEFAULT_CRITERIA
+    measures: Sequence[str] | None = None
+    missing: str = "interpolate"
+    delta: float = 1.0
+    mu: float = 0.01
+    tolerance_ns: int = 10_000_000
+    lateness_ns: int = 1_000_000_000
+    extrinsic: tuple[float, ...] | None = None
+    """Point-cloud GT: the cloud → left camera transform (16 numbers, row-major); None reads
+    the chain from /tf_static."""
+    cloud_filter: str = str(CloudFilter())
+    """Point-cloud GT: the parallax filter, ``"W,G"`` or ``"0"`` (see :class:`CloudFilter`)."""
+    left_image_topic: str | None = None
+    """Left rectified sensor_msgs/Image (mono8, 8UC1, rgb8 or bgr8): with the right one, the
+    ground-truth-free measures (vpe, lrc) on ``gtfree:`` criteria."""
+    right_image_topic: str | None = None
+    right_views: Mapping[str, str] = field(default_factory=dict)
+    """Method → its right-view DisparityImage topic (for lrc); optional per method."""
+    gt_free_criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA
+
+    def __post_init__(self) -> None:
+        self._normalise()
+        if not self.methods:
+            raise ConfigurationError("no method given; name at least one NAME=TOPIC")
+        if self.gt_kind not in GT_KINDS:
+            raise ConfigurationError(
+                f"ground-truth kind must be one of {', '.join(GT_KINDS)}, got '{self.gt_kind}'"
+            )
+        topics = list(self.methods.values())
+        if len(set(topics)) != len(topics):
+            raise ConfigurationError("two methods read the same topic")
+        images = (self.left_image_topic, self.right_image_topic)
+        others = [
+            t for t in images if t and not (self.gt_kind == "none" and t == self.gt_topic)
+        ] + list(self.right_views.values())
+        if len(set(others)) != len(others) or set(others) & {self.gt_topic, *topics}:
+            raise ConfigurationError(
+                "the image and right-view topics must differ from each other, from the "
+                "ground-truth topic and from the methods' topics"
+            )
+        if self.gt_topic in topics:
+            raise ConfigurationError(
+                f"the ground-truth topic {self.gt_topic} is also a method's topic"
+            )
+        if (self.left_info_topic is None) != (self.right_info_topic is None):
+            raise ConfigurationError(
+                "give both the left and the right CameraInfo topics, or neither"
+            )
+        if (self.left_image_topic is None) != (self.right_image_topic is None):
+            raise ConfigurationError("give both the left and the right image topics, or neither")
+        if self.gt_kind == "none" and self.left_image_topic != self.gt_topic:
+            raise ConfigurationError(
+                "without ground truth the left image topic is the frame clock: give the left and "
+                "right image topics"
+            )
+        unknown = sorted(set(self.right_views) - set(self.methods))
+        if unknown:
+            raise ConfigurationError(
+                f"right-view disparity topics of unknown methods: {', '.join(unknown)}"
+            )
+        if self.right_views and not self.gt_free:
+            raise ConfigurationError(
+                "right-view disparities (for lrc) need the left and right image topics"
+            )
+        reserved = [
+            m
+            for m in self.methods
+            if m in (LEFT_IMAGE_KEY, RIGHT_IMAGE_KEY) or m.startswith(RIGHT_VIEW_KEY)
+        ]
+        if reserved:
+            raise ConfigurationError(f"method name '{reserved[0]}' is reserved")
+        if self.gt_free:
+            GroundTruthFree(self.gt_free_criteria, self.missing)  # checks the criteria
+            if "roi" in self.gt_free_criteria:
+                raise ConfigurationError(
+                    "the ground-truth-free criterion set 'roi' needs a mask: not available on "
+                    "streams; choose all, texture"
+                )
+        if self.gt_kind == "pointcloud":
+            if self.left_info_topic is None:
+                raise ConfigurationError(
+                    "ground truth from a point cloud needs the left and right CameraInfo topics "
+                    "(the left camera's R and P, and the baseline)"
+                )
+            CloudFilter.parse(self.cloud_filter)
+            if self.extrinsic is not None:
+                rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
+
+    def _normalise(self) -> None:
+        """Plain dicts and tuples, whatever was given: equal configurations compare equal.
+
+        So :meth:`from_record` gives back a configuration equal to the one stored.
+        """
+        criteria = self.criteria
+        fixed: dict[str, object] = {
+            "methods": dict(self.methods),
+            "criteria": (criteria,) if isinstance(criteria, str) else tuple(criteria),
+            "measures": None if self.measures is None else tuple(self.measures),
+            "right_views": dict(self.right_views),
+            "gt_free_criteria": tuple(self.gt_free_criteria),
+            "extrinsic": None if self.extrinsic is None else tuple(self.extrinsic),
+        }
+        for name, value in fixed.items():
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_record(cls, record: Mapping[str, Any]) -> CoreConfig:
+        """The configuration :meth:`as_record` stored (its inverse).
+
+        Keys the record leaves out (no point cloud, no images) keep their defaults.
+        """
+        left_info, right_info = (record.get("camera_info") or [None, None])[:2]
+        left_image, right_image = (record.get("images") or [None, None])[:2]
+        options: dict[str, Any] = {
+            key: record[key]
+            for key in (
+                "gt_kind",
+                "gt_scale",
+                "missing",
+                "delta",
+                "mu",
+                "tolerance_ns",
+                "lateness_ns",
+            )
+            if record.get(key) is not None
+        }
+        if record.get("cloud_filter") is not None:  # point-cloud GT
+            options["cloud_filter"] = str(record["cloud_filter"])
+        if record.get("extrinsic"):
+            options["extrinsic"] = tuple(float(v) for v in record["extrinsic"])
+        for key in ("criteria", "measures", "gt_free_criteria"):
+            if record.get(key):
+                options[key] = tuple(record[key])
+        return cls(
+            methods=dict(record["methods"]),
+            gt_topic=record["gt_topic"],
+            left_info_topic=left_info,
+            right_info_topic=right_info,
+            left_image_topic=left_image,
+            right_image_topic=right_image,
+            right_views=dict(record.get("right_views") or {}),
+            **options,
+        )
+
+    @property
+    def pointcloud(self) -> bool:
+        """Whether the ground truth is a LiDAR point cloud."""
+        return self.gt_kind == "pointcloud"
+
+    @property
+    def gt_free(self) -> bool:
+        """Whether the ground-truth-free measures are scored (both image topics given)."""
+        return self.left_image_topic is not None and self.right_image_topic is not None
+
+    @property
+    def has_gt(self) -> bool:
+        """Whether a ground truth is scored (kind other than ``none``)."""
+        return self.gt_kind != "none"
+
+    @property
+    def scored_measures(self) -> tuple[str, ...]:
+        """Every measure a frame's scores carry: the GT ones, then the GT-free ones."""
+        gt = tuple(self.evaluator().measures) if self.has_gt else ()
+        free = GT_FREE_SCORED if self.gt_free else ()
+        return tuple(dict.fromkeys((*gt, *free)))
+
+    def auxiliary(self) -> dict[str, str]:
+        """Join key → topic of the streams joined with each frame beside the methods."""
+        keys: dict[str, str] = {}
+        if self.gt_free and self.has_gt and self.left_image_topic is not None:
+            keys[LEFT_IMAGE_KEY] = self.left_image_topic
+        if self.gt_free and self.right_image_topic is not None:
+            keys[RIGHT_IMAGE_KEY] = self.right_image_topic
+        keys.update({RIGHT_VIEW_KEY + name: topic for name, topic in self.right_views.items()})
+        return keys
+
+    @property
+    def tf_topic(self) -> str | None:
+        """The static transforms topic read (point-cloud GT without an explicit extrinsic)."""
+        return TF_STATIC_TOPIC if self.pointcloud and self.extrinsic is None else None
+
+    @property
+    def topics(self) -> dict[str, str]:
+        """Every subscribed topic → the message type expected on it.
+
+        Calibration topics come first: a front end that serves its readers in this order
+        takes a frame's CameraInfo and transforms before the messages that complete it.
+        """
+        expected: dict[str, str] = {}
+        if self.left_info_topic and self.right_info_topic:
+            expected[self.left_info_topic] = CAMERA_INFO_TYPE
+            expected[self.right_info_topic] = CAMERA_INFO_TYPE
+        if self.tf_topic:
+            expected[self.tf_topic] = TF_TYPE
+        expected[self.gt_topic] = POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE
+        expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
+        if self.left_image_topic and self.right_image_topic:
+            expected[self.left_image_topic] = IMAGE_TYPE
+            expected[self.right_image_topic] = IMAGE_TYPE
+        expected.update(dict.fromkeys(self.right_views.values(), DISPARITY_TYPE))
+        return expected
+
+    def as_record(self) -> dict[str, object]:
+        """The configuration as plain values (stored with results, compared on --resume)."""
+        return {
+            "methods": dict(self.methods),
+            "gt_topic": self.gt_topic,
+            "gt_kind": self.gt_kind,
+            "gt_scale": self.gt_scale,
+            "camera_info": [self.left_info_topic, self.right_info_topic],
+            "criteria": list(self.criteria),
+            "measures": list(self.measures or []),
+            "missing": self.missing,
+            "delta": self.delta,
+            "mu": self.mu,
+            "tolerance_ns": self.tolerance_ns,
+            "lateness_ns": self.lateness_ns,
+            "lateness_clock": "arrival",  # not resumed onto results waited in stamp time
+            **(
+                {"extrinsic": list(self.extrinsic or []), "cloud_filter": self.cloud_filter}
+                if self.pointcloud
+                else {}
+            ),
+            **(
+                {
+                    "images": [self.left_image_topic, self.right_image_topic],
+                    "right_views": dict(self.right_views),
+                    "gt_free_criteria": list(self.gt_free_criteria),
+                }
+                if self.gt_free
+                else {}
+            ),
+        }
+
+    def ground_truth_free(self) -> GroundTruthFree | None:
+        """The ground-truth-free scorer (None without image topics)."""
+        if not self.gt_free:
+            return None
+        return GroundTruthFree(self.gt_free_criteria, self.missing)
+
+    def evaluator(self) -> Evaluator:
+        """The core evaluator these options describe (measures default to the summable ones).
+
+        Unused without ground truth (``gt_kind`` ``none``).
+
+        LiDAR GT gets metric depth ranges (0-10, 10-30, 30+ m), the sparse boundary rule and
+        the depth-domain measures by default.
+        """
+        measures = self.measures if self.measures is not None else default_measures(self.pointcloud)
+        if not self.pointcloud:
+            return Evaluator(self.criteria, measures, self.missing, self.delta, self.mu)
+        return Evaluator(
+            self.criteria,
+            measures,
+            self.missing,
+            self.delta,
+            self.mu,
+            boundary_mode="sparse",
+            depth_ranges=LIDAR_DEPTH_RANGES,
+        )
+
+
+def field_default(record: type, name: str) -> Any:
+    """The default of a dataclass field: the one value front ends show as their default."""
+    for item in dataclasses.fields(record):
+        if item.name == name:
+            if item.default is not dataclasses.MISSING:
+                return item.default
+            if item.default_factory is not dataclasses.MISSING:
+                return item.default_factory()
+    raise KeyError(f"{record.__name__} has no default for '{name}'")
+
+
+def core_default(name: str) -> Any:
+    """The default of a :class:`CoreConfig` field (see :func:`field_default`)."""
+    return field_default(CoreConfig, name)
+
+
+def default_measures(pointcloud: bool) -> tuple[str, ...]:
+    """The measures scored when none are named: the summable ones, and LiDAR's depth ones.
+
+    Quantiles are opt-in for streams: not summable over frames, not cheap.
+    """
+    return (*SEQUENCE_MEASURES, *DEPTH_MEASURES) if pointcloud else SEQUENCE_MEASURES
