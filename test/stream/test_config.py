@@ -27,7 +27,7 @@ from dispeval_ros.offline.records import stream_topics
 from dispeval_ros.ros import param_table, params
 from dispeval_ros.stream.config import CoreConfig, core_default
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NS = 1_000_000_000
 METHODS = {"sgbm": "/stereo/sgbm/disparity", "bm": "/stereo/bm/disparity"}
 INFOS = {"left_info_topic": "/left/camera_info", "right_info_topic": "/right/camera_info"}
