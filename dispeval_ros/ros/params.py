@@ -37,6 +37,7 @@ from dispeval_ros.ros.param_table import (
 from dispeval_ros.stream.config import FieldNames, core_default
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.topics import NAMESPACE
 from dispeval_ros.stream.vectors import AlarmThresholds
 from dispeval_ros.summary import GRANULARITIES
 
@@ -100,7 +101,7 @@ def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str,
         if not _METHOD_NAME.fullmatch(name) or "__" in name:
             raise ConfigurationError(
                 f"parameter {parameter}: method name '{name}' must be letters, digits and _ "
-                "(no leading digit, no __): it becomes part of /dispeval/NAME/... topics"
+                f"(no leading digit, no __): it becomes part of {NAMESPACE}/NAME/... topics"
             )
         pairs.append((name, topic))
     methods = ROS_NAMES.unique(pairs, parameter)
