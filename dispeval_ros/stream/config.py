@@ -2,10 +2,12 @@
 
 Every front end (``dispeval bag``/``live``, the ROS and DDS nodes, the report) builds this one
 record: its field defaults are the defaults the options, the ROS parameter table and
-``config/evaluator.yaml`` show (pinned by test/test_config.py), its checks are the rules every
-front end enforces, :attr:`CoreConfig.topics` is the one list of the topics read (subscribed,
-replayed, checked and hashed for the provenance), and :meth:`CoreConfig.from_record` reads back
-what :meth:`CoreConfig.as_record` stored with the results.
+``config/evaluator.yaml`` show (pinned by test/stream/test_config.py); its checks are the rules
+every front end enforces, checked here only and worded with the front end's names of the fields
+(:class:`FieldNames`, guarded by test/stream/test_config_rules.py); :attr:`CoreConfig.topics` is
+the one list of the topics read (subscribed, replayed, checked and hashed for the provenance);
+and :meth:`CoreConfig.from_record` reads back what :meth:`CoreConfig.as_record` stored with the
+results.
 """
 
 from __future__ import annotations
