@@ -17,6 +17,7 @@ from dispeval_ros.dds import environment
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.stream.config import QUEUE_SIZE, field_default
 from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC, VECTOR_LEAF, method_topic
 
 HELP = "evaluate live stereo streams (ROS 2 topics over Cyclone DDS, no ROS needed)"
 TRANSPORTS = ("dds",)
@@ -30,9 +31,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=HELP,
         description=HELP + ". Subscribes to the ground truth and every method's DisparityImage "
         "(best-effort, as sensor data), scores each frame joined by stamp, publishes "
-        "/dispeval/scores (DiagnosticArray), /dispeval/<method>/vector (Float64MultiArray) and "
-        "/dispeval/groups, and writes the same results.sqlite, frames.csv and summary.json as "
-        "'dispeval bag' into --out. Ctrl-C (SIGINT) or SIGTERM stops cleanly.",
+        f"{SCORES_TOPIC} (DiagnosticArray), {method_topic('<method>', VECTOR_LEAF)} "
+        f"(Float64MultiArray) and {GROUPS_TOPIC}, and writes the same results.sqlite, frames.csv "
+        "and summary.json as 'dispeval bag' into --out. Ctrl-C (SIGINT) or SIGTERM stops cleanly.",
     )
     parser.add_argument(
         "--transport",

@@ -11,7 +11,7 @@ from dispeval_ros.cli import common
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.stream.config import core_default, default_measures
+from dispeval_ros.stream.config import FieldNames, core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
 
 if TYPE_CHECKING:
@@ -110,18 +110,33 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     return run
 
 
-def _methods(specs: list[str], option: str = "--method") -> dict[str, str]:
-    methods: dict[str, str] = {}
+_NAMES = {
+    "methods": "--method",
+    "right_views": "--right-view",
+    "gt_kind": "--gt-kind",
+    "left_info_topic": "--camera-info LEFT",
+    "right_info_topic": "--camera-info RIGHT",
+    "left_image_topic": "--left-image",
+    "right_image_topic": "--right-image",
+}
+"""How the options name :class:`CoreConfig`'s fields in its errors (``gt_topic``: see below)."""
+
+
+def field_names(cloud: bool) -> FieldNames:
+    """The CLI's names of the configuration fields (the GT topic is --gt or --gt-cloud)."""
+    return FieldNames({**_NAMES, "gt_topic": "--gt-cloud" if cloud else "--gt"})
+
+
+def _methods(specs: list[str], about: str, names: FieldNames) -> dict[str, str]:
+    pairs = []
     for spec in specs:
         name, sep, topic = spec.partition("=")
         if not sep or not name or not topic:
             raise ConfigurationError(
-                f"{option} '{spec}' is not NAME=TOPIC (e.g. sgbm=/stereo/sgbm/disparity)"
+                f"{names.of(about)} '{spec}' is not NAME=TOPIC (e.g. sgbm=/stereo/sgbm/disparity)"
             )
-        if name in methods:
-            raise ConfigurationError(f"method name '{name}' is given twice")
-        methods[name] = topic
-    return methods
+        pairs.append((name, topic))
+    return names.unique(pairs, about)
 
 
 def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
@@ -137,10 +152,9 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         args.extrinsic is not None or args.cloud_filter != core_default("cloud_filter")
     ):
         raise ConfigurationError("--extrinsic and --cloud-filter go with --gt-cloud")
-    if (args.left_image is None) != (args.right_image is None):
-        raise ConfigurationError("give both --left-image and --right-image, or neither")
+    names = field_names(cloud)
     has_gt = cloud or args.gt is not None
-    if not has_gt and args.left_image is None:
+    if not has_gt and args.left_image is None and args.right_image is None:
         raise ConfigurationError(
             "give the ground truth (--gt TOPIC or --gt-cloud TOPIC), or the rectified images "
             "(--left-image TOPIC --right-image TOPIC) for the ground-truth-free measures"
@@ -156,12 +170,12 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
 
         extrinsic = tuple(float(v) for v in read_extrinsic(args.extrinsic).reshape(-1))
     config = CoreConfig(
-        methods=_methods(args.method),
+        methods=_methods(args.method, "methods", names),
         gt_topic=args.gt_cloud if cloud else (args.gt if has_gt else args.left_image),
         gt_kind="pointcloud" if cloud else (args.gt_kind if has_gt else "none"),
         left_image_topic=args.left_image,
         right_image_topic=args.right_image,
-        right_views=_methods(args.right_view, "--right-view"),
+        right_views=_methods(args.right_view, "right_views", names),
         gt_free_criteria=tuple(gt_free_criteria),
         extrinsic=extrinsic,
         cloud_filter=str(CloudFilter.parse(args.cloud_filter)),
@@ -175,6 +189,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         mu=evaluator.mu,
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
+        names=names,
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)

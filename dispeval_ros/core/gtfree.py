@@ -27,6 +27,7 @@ from numba import njit
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core import kernels as k
+from dispeval_ros.core import registry
 from dispeval_ros.core.evaluator import POLICIES, _same, as_disparity, estimate_coding
 from dispeval_ros.core.measures import (
     FIELDS,
@@ -39,7 +40,7 @@ from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchErr
 
 GT_FREE_CRITERION_SETS = ("all", "roi", "texture")
 DEFAULT_GT_FREE_CRITERIA = ("all", "texture")
-GT_FREE_SCORED = (*GT_FREE_MEASURES, "density")
+GT_FREE_SCORED = (*GT_FREE_MEASURES, *registry.names(needs=registry.NEEDS_NONE))
 """What a GT-free criterion reports (with ``n``, its number of pixels)."""
 OCCLUSION_TOLERANCE = 1.0
 """A pixel is occluded when a pixel landing on the same right-view column has a disparity

@@ -15,6 +15,13 @@ from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
 from dispeval_ros.stream.join import LATENESS_RULE
 from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.topics import (
+    ERROR_COLOR_LEAF,
+    ERROR_LEAF,
+    NAMESPACE,
+    SCORES_TOPIC,
+    method_topic,
+)
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"
@@ -56,7 +63,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         STRING_ARRAY,
         None,
         "Methods to evaluate, each NAME:TOPIC of a stereo_msgs/msg/DisparityImage topic. "
-        "NAME appears in the output topics /dispeval/NAME/...",
+        f"NAME appears in the output topics {NAMESPACE}/NAME/...",
         "at least one; NAME: letters, digits and _ (no leading digit, no __); topics distinct",
     ),
     Param(
@@ -237,14 +244,15 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "error_images",
         BOOL,
         False,
-        "Also publish /dispeval/NAME/error (32FC1 absolute error, NaN where not evaluated) and "
-        "/dispeval/NAME/error_color (rgb8, criteria borders in white)",
+        f"Also publish {method_topic('NAME', ERROR_LEAF)} (32FC1 absolute error, NaN where not "
+        f"evaluated) and {method_topic('NAME', ERROR_COLOR_LEAF)} (rgb8, criteria borders in "
+        "white)",
     ),
     Param(
         "alarm_warn",
         STRING_ARRAY,
         (),
-        "WARN level in /dispeval/scores when CRITERION/MEASURE exceeds VALUE (density: falls "
+        f"WARN level in {SCORES_TOPIC} when CRITERION/MEASURE exceeds VALUE (density: falls "
         "below it). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=20",
         read_only=False,
@@ -253,7 +261,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "alarm_error",
         STRING_ARRAY,
         (),
-        "ERROR level in /dispeval/scores when CRITERION/MEASURE exceeds VALUE (density: falls "
+        f"ERROR level in {SCORES_TOPIC} when CRITERION/MEASURE exceeds VALUE (density: falls "
         "below it). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=40",
         read_only=False,
@@ -285,7 +293,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "bag_wait_subscribers",
         INTEGER,
         0,
-        "Before replaying, wait until /dispeval/scores has this many matched subscribers (e.g. 1 "
+        f"Before replaying, wait until {SCORES_TOPIC} has this many matched subscribers (e.g. 1 "
         "so that the summarizer sees every frame)",
         "[0, 1000]",
         low=0,

@@ -34,9 +34,10 @@ from dispeval_ros.ros.param_table import (
     Param,
     ParamValue,
 )
-from dispeval_ros.stream.config import core_default
-from dispeval_ros.stream.core import GT_KINDS, CoreConfig
+from dispeval_ros.stream.config import FieldNames, core_default
+from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.stream.summarizer import SummarizerConfig
+from dispeval_ros.stream.topics import NAMESPACE
 from dispeval_ros.stream.vectors import AlarmThresholds
 from dispeval_ros.summary import GRANULARITIES
 
@@ -45,6 +46,7 @@ __all__ = [  # the table's names stay importable from here
     "DOUBLE",
     "EVALUATOR_PARAMETERS",
     "INTEGER",
+    "ROS_NAMES",
     "STRING",
     "STRING_ARRAY",
     "SUMMARIZER_PARAMETERS",
@@ -69,9 +71,27 @@ _METHOD_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 # -- values → configurations (no ROS) --------------------------------------------------------
 
 
+ROS_NAMES = FieldNames(
+    {
+        "methods": "methods",
+        "right_views": "right_views",
+        "gt_topic": "gt_topic",
+        "gt_kind": "gt_kind",
+        "left_info_topic": "left_camera_info",
+        "right_info_topic": "right_camera_info",
+        "left_image_topic": "left_image_topic",
+        "right_image_topic": "right_image_topic",
+    },
+    one="parameter ",
+    many="parameters ",
+    advice={"left_info_topic": "then the camera comes from each DisparityImage's f and t"},
+)
+"""How the parameters name :class:`CoreConfig`'s fields in its errors."""
+
+
 def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str, str]:
     """``NAME:TOPIC`` strings → {name: topic}; names must be usable in topic names."""
-    methods: dict[str, str] = {}
+    pairs = []
     for item in items:
         name, sep, topic = (part.strip() for part in item.partition(":"))
         if not sep or not name or not topic:
@@ -81,11 +101,10 @@ def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str,
         if not _METHOD_NAME.fullmatch(name) or "__" in name:
             raise ConfigurationError(
                 f"parameter {parameter}: method name '{name}' must be letters, digits and _ "
-                "(no leading digit, no __): it becomes part of /dispeval/NAME/... topics"
+                f"(no leading digit, no __): it becomes part of {NAMESPACE}/NAME/... topics"
             )
-        if name in methods:
-            raise ConfigurationError(f"parameter {parameter}: method '{name}' is given twice")
-        methods[name] = topic
+        pairs.append((name, topic))
+    methods = ROS_NAMES.unique(pairs, parameter)
     if not methods:
         raise ConfigurationError(
             "parameter methods is empty: give at least one NAME:TOPIC "
@@ -118,29 +137,14 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from the evaluator's parameter values."""
     gt_topic = str(values["gt_topic"]).strip()
     kind = str(values["gt_kind"])
-    if kind not in GT_KINDS:
-        raise ConfigurationError(
-            f"parameter gt_kind must be one of {', '.join(GT_KINDS)}, got '{kind}'"
-        )
     left_image = str(values.get("left_image_topic", "")).strip()
     right_image = str(values.get("right_image_topic", "")).strip()
-    if bool(left_image) != bool(right_image):
-        raise ConfigurationError(
-            "parameters left_image_topic and right_image_topic: give both image topics or neither"
-        )
-    if kind == "none":
-        if not left_image:
-            raise ConfigurationError(
-                "parameter gt_kind is none: give left_image_topic and right_image_topic (the "
-                "ground-truth-free measures need them)"
-            )
+    if kind == "none":  # the core's GT topic is then the left image (its frame clock)
         if gt_topic:
             raise ConfigurationError(
                 "parameter gt_kind is none but gt_topic is set: leave gt_topic empty"
             )
         gt_topic = left_image
-    elif not gt_topic:
-        raise ConfigurationError("parameter gt_topic is empty: name the ground-truth Image topic")
     right_views = tuple(values.get("right_views", ()))
     gt_free_criteria = tuple(values.get("gt_free_criteria", core_default("gt_free_criteria")))
     scale = float(values["gt_scale"])
@@ -154,11 +158,6 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         measures = ()  # the core's default for the ground-truth kind
     left = str(values["left_camera_info"]).strip()
     right = str(values["right_camera_info"]).strip()
-    if bool(left) != bool(right):
-        raise ConfigurationError(
-            "parameters left_camera_info and right_camera_info: give both CameraInfo topics or "
-            "neither (then the camera comes from each DisparityImage's f and t)"
-        )
     return CoreConfig(
         methods=parse_methods(values["methods"]),
         gt_topic=gt_topic,
@@ -179,6 +178,7 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         right_image_topic=right_image or None,
         right_views=parse_methods(right_views, "right_views") if right_views else {},
         gt_free_criteria=gt_free_criteria,
+        names=ROS_NAMES,
     )
 
 

@@ -2,17 +2,19 @@
 
 Every front end (``dispeval bag``/``live``, the ROS and DDS nodes, the report) builds this one
 record: its field defaults are the defaults the options, the ROS parameter table and
-``config/evaluator.yaml`` show (pinned by test/test_config.py), its checks are the rules every
-front end enforces, :attr:`CoreConfig.topics` is the one list of the topics read (subscribed,
-replayed, checked and hashed for the provenance), and :meth:`CoreConfig.from_record` reads back
-what :meth:`CoreConfig.as_record` stored with the results.
+``config/evaluator.yaml`` show (pinned by test/stream/test_config.py); its checks are the rules
+every front end enforces, checked here only and worded with the front end's names of the fields
+(:class:`FieldNames`, guarded by test/stream/test_config_rules.py); :attr:`CoreConfig.topics` is
+the one list of the topics read (subscribed, replayed, checked and hashed for the provenance);
+and :meth:`CoreConfig.from_record` reads back what :meth:`CoreConfig.as_record` stored with the
+results.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import InitVar, dataclass, field
 from typing import Any
 
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
@@ -39,6 +41,57 @@ RIGHT_IMAGE_KEY = "<right image>"
 RIGHT_VIEW_KEY = "<right view> "
 """Join keys of the images and of each method's right-view disparity (``RIGHT_VIEW_KEY + name``):
 joined with the ground truth like a method, never counted as one."""
+
+
+@dataclass(frozen=True)
+class FieldNames:
+    """How a front end names :class:`CoreConfig`'s fields in the rules' messages.
+
+    Each rule is checked once, in :class:`CoreConfig`; its message names the fields through this
+    so that ``dispeval bag`` says ``--left-image`` and the ROS node ``parameter
+    left_image_topic``. Fields not in ``names`` keep the neutral wording of :data:`NEUTRAL_NAMES`.
+    """
+
+    names: Mapping[str, str] = field(default_factory=dict)
+    one: str = ""
+    """Put before one field's name (``"parameter "``)."""
+    many: str = ""
+    """Put before two fields' names (``"parameters "``)."""
+    advice: Mapping[str, str] = field(default_factory=dict)
+    """Field → the front end's advice appended to the messages of the rules on it."""
+
+    def of(self, *fields: str) -> str:
+        """The fields as this front end names them: ``--left-image and --right-image``."""
+        names = [self.names.get(name) or _NEUTRAL[name] for name in fields]
+        return (self.one if len(names) == 1 else self.many) + " and ".join(names)
+
+    def error(self, message: str, about: str) -> ConfigurationError:
+        """The error of a rule on field ``about``, with the front end's advice on it."""
+        advice = self.advice.get(about)
+        return ConfigurationError(f"{message} ({advice})" if advice else message)
+
+    def unique(self, pairs: Iterable[tuple[str, str]], about: str) -> dict[str, str]:
+        """``(name, topic)`` pairs → {name: topic}; a name given twice is an error."""
+        methods: dict[str, str] = {}
+        for name, topic in pairs:
+            if name in methods:
+                raise self.error(f"{self.of(about)}: method '{name}' is given twice", about)
+            methods[name] = topic
+        return methods
+
+
+_NEUTRAL = {
+    "methods": "the methods",
+    "right_views": "the right views",
+    "gt_topic": "the ground-truth topic",
+    "gt_kind": "the ground-truth kind",
+    "left_info_topic": "the left CameraInfo topic",
+    "right_info_topic": "the right CameraInfo topic",
+    "left_image_topic": "the left image topic",
+    "right_image_topic": "the right image topic",
+}
+NEUTRAL_NAMES = FieldNames()
+"""The wording for Python callers: fields named in plain words."""
 
 
 @dataclass(frozen=True)
@@ -70,15 +123,14 @@ class CoreConfig:
     right_views: Mapping[str, str] = field(default_factory=dict)
     """Method → its right-view DisparityImage topic (for lrc); optional per method."""
     gt_free_criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA
+    names: InitVar[FieldNames | None] = None
+    """How the front end names the fields in the errors (not stored; neutral words if None)."""
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, names: FieldNames | None) -> None:
         self._normalise()
+        self._check_fields(names or NEUTRAL_NAMES)
         if not self.methods:
             raise ConfigurationError("no method given; name at least one NAME=TOPIC")
-        if self.gt_kind not in GT_KINDS:
-            raise ConfigurationError(
-                f"ground-truth kind must be one of {', '.join(GT_KINDS)}, got '{self.gt_kind}'"
-            )
         topics = list(self.methods.values())
         if len(set(topics)) != len(topics):
             raise ConfigurationError("two methods read the same topic")
@@ -94,17 +146,6 @@ class CoreConfig:
         if self.gt_topic in topics:
             raise ConfigurationError(
                 f"the ground-truth topic {self.gt_topic} is also a method's topic"
-            )
-        if (self.left_info_topic is None) != (self.right_info_topic is None):
-            raise ConfigurationError(
-                "give both the left and the right CameraInfo topics, or neither"
-            )
-        if (self.left_image_topic is None) != (self.right_image_topic is None):
-            raise ConfigurationError("give both the left and the right image topics, or neither")
-        if self.gt_kind == "none" and self.left_image_topic != self.gt_topic:
-            raise ConfigurationError(
-                "without ground truth the left image topic is the frame clock: give the left and "
-                "right image topics"
             )
         unknown = sorted(set(self.right_views) - set(self.methods))
         if unknown:
@@ -138,6 +179,34 @@ class CoreConfig:
             CloudFilter.parse(self.cloud_filter)
             if self.extrinsic is not None:
                 rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
+
+    def _check_fields(self, names: FieldNames) -> None:
+        """The rules the front ends share, worded with the front end's names (``names``)."""
+        if self.gt_kind not in GT_KINDS:
+            raise names.error(
+                f"{names.of('gt_kind')} must be one of {', '.join(GT_KINDS)}, "
+                f"got '{self.gt_kind}'",
+                "gt_kind",
+            )
+        for left, right in (
+            ("left_image_topic", "right_image_topic"),
+            ("left_info_topic", "right_info_topic"),
+        ):
+            if (getattr(self, left) is None) != (getattr(self, right) is None):
+                raise names.error(f"give both {names.of(left, right)}, or neither", left)
+        if self.gt_kind == "none" and (
+            self.left_image_topic is None or self.left_image_topic != self.gt_topic
+        ):
+            raise names.error(
+                f"{names.of('gt_kind')} is none: give "
+                f"{names.of('left_image_topic', 'right_image_topic')} (without ground truth the "
+                "left image is the frame clock, and the ground-truth-free measures need them)",
+                "left_image_topic",
+            )
+        if self.gt_kind != "none" and not self.gt_topic:
+            raise names.error(
+                f"{names.of('gt_topic')} is empty: name the ground-truth topic", "gt_topic"
+            )
 
     def _normalise(self) -> None:
         """Plain dicts and tuples, whatever was given: equal configurations compare equal.

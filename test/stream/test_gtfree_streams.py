@@ -184,8 +184,11 @@ def test_estimate_of_another_size_than_the_images_is_a_method_problem() -> None:
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        ({"left_image_topic": LEFT_IMAGE}, "both the left and the right image topics"),
-        ({"gt_kind": "none"}, "without ground truth the left image topic is the frame clock"),
+        (
+            {"left_image_topic": LEFT_IMAGE},
+            "give both the left image topic and the right image topic, or neither",
+        ),
+        ({"gt_kind": "none"}, "without ground truth the left image is the frame clock"),
         (
             {"left_image_topic": GT_TOPIC, "right_image_topic": RIGHT_IMAGE},
             "image and right-view topics must differ",
