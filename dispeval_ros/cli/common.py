@@ -34,6 +34,11 @@ def comma_list(text: str) -> list[str]:
     return [part for part in text.replace(",", " ").split() if part]
 
 
+#: The defaults of --missing and --delta (``eval --protocol`` refuses any other value: unused).
+DEFAULT_MISSING = "interpolate"
+DEFAULT_DELTA = 1.0
+
+
 def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     """Options that configure an :class:`Evaluator` (same names in every command)."""
     group = parser.add_argument_group("evaluation")
@@ -55,11 +60,11 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--missing",
         choices=sorted(POLICIES),
-        default="interpolate",
+        default=DEFAULT_MISSING,
         help="missing-estimate policy (default: interpolate, KITTI's background interpolation)",
     )
     group.add_argument(
-        "--delta", type=float, default=1.0, help="bad-pixel threshold δ in px (default 1)"
+        "--delta", type=float, default=DEFAULT_DELTA, help="bad-pixel threshold δ in px (default 1)"
     )
     group.add_argument(
         "--mu", type=float, default=0.01, help="SZE division guard μ in px (default 0.01)"

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from dispeval_ros.cli.common import DEFAULT_DELTA, DEFAULT_MISSING
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text
 from dispeval_ros.core.protocols import PROTOCOLS, Protocol, get_protocol
@@ -64,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.offline.benchmark import evaluate_benchmark, evaluate_frames, single_frame
 
     protocol = get_protocol(args.protocol)
+    _refuse_unused_options(args, protocol)
     estimates = _estimates(args.est)
     if args.scene is not None:
         if args.gt is not None:
@@ -95,6 +97,19 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(report_text(run_result, per_frame=not args.summary_only))
     return 0
+
+
+def _refuse_unused_options(args: argparse.Namespace, protocol: Protocol) -> None:
+    """``--delta`` and ``--missing`` set the project's measures, never a benchmark's: refused."""
+    for option, value, default in (
+        ("--delta", args.delta, DEFAULT_DELTA),
+        ("--missing", args.missing, DEFAULT_MISSING),
+    ):
+        if value != default:
+            raise ConfigurationError(
+                f"{option} does not apply with --protocol: {protocol.name} uses its own "
+                "thresholds and invalid-estimate handling (drop the option)"
+            )
 
 
 def _cell(protocol: Protocol, column: str, value: float) -> str:

@@ -152,6 +152,12 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         args.extrinsic is not None or args.cloud_filter != core_default("cloud_filter")
     ):
         raise ConfigurationError("--extrinsic and --cloud-filter go with --gt-cloud")
+    if args.gt is None and args.gt_kind != core_default("gt_kind"):
+        raise ConfigurationError(
+            f"--gt-kind {args.gt_kind} does not apply "
+            + ("with --gt-cloud (the cloud gives depth points)" if cloud else "without --gt")
+            + ": it is the encoding of the --gt image topic"
+        )
     names = field_names(cloud)
     has_gt = cloud or args.gt is not None
     if not has_gt and args.left_image is None and args.right_image is None:

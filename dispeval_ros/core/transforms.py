@@ -98,13 +98,23 @@ def rigid_matrix(values: Sequence[float] | np.ndarray, what: str = "the transfor
     matrix[: array.size // 4] = array.reshape(-1, 4)
     if not np.allclose(matrix[3], [0, 0, 0, 1], atol=1e-9):
         raise CalibrationError(f"{what}: the last row must be 0 0 0 1, got {matrix[3].tolist()}")
-    rotation = matrix[:3, :3]
+    check_rotation(matrix[:3, :3], f"{what}: the 3×3 rotation part")
+    return matrix
+
+
+def check_rotation(rotation: np.ndarray, what: str) -> np.ndarray:
+    """``rotation`` if orthonormal with determinant +1 (to 1e-3), else a one-line refusal.
+
+    One rule for every rotation read from a calibration (extrinsics, CameraInfo ``R``): a
+    scaled or sheared matrix would project points to wrong pixels without any error.
+    """
     if not (
-        np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3)
+        np.isfinite(rotation).all()
+        and np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3)
         and abs(np.linalg.det(rotation) - 1) < 1e-3
     ):
-        raise CalibrationError(f"{what}: the 3×3 rotation part is not a rotation matrix")
-    return matrix
+        raise CalibrationError(f"{what} is not a rotation matrix")
+    return rotation
 
 
 def invert_rigid(matrix: np.ndarray) -> np.ndarray:

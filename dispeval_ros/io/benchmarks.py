@@ -79,6 +79,21 @@ def _scene_frame(folder: Path) -> BenchmarkFrame | None:
     )
 
 
+def _refuse_scene_without_gt(protocol: Protocol, folders: list[Path]) -> None:
+    """A scene folder (it holds ``im0.png``) beside the others but without GT: refused.
+
+    Leaving it out would change the weighted / mean table without a word, and the official
+    table needs every scene: the user removes the folder or adds its GT.
+    """
+    for folder in folders:
+        if (folder / "im0.png").is_file():
+            raise LayoutError(
+                f"{folder}: a {protocol.title} scene folder without disp0GT.pfm (or disp0.pfm); "
+                "the table over the scenes needs every scene's ground truth: add it or move the "
+                "folder out of the tree"
+            )
+
+
 def _kitti_root(root: Path, occ: str) -> Path | None:
     for candidate in (root, root / "training", root / "gt", root / "training" / "gt"):
         if (candidate / occ).is_dir():
@@ -160,12 +175,11 @@ def discover(protocol: Protocol, root: Path) -> list[BenchmarkFrame]:
         own = _scene_frame(root)
         if own is not None:
             return [own]
-        scenes = [
-            frame
-            for frame in (_scene_frame(p) for p in sorted(root.iterdir()) if p.is_dir())
-            if frame is not None
-        ]
+        folders = [p for p in sorted(root.iterdir()) if p.is_dir()]
+        found = {p: _scene_frame(p) for p in folders}
+        scenes = [frame for frame in found.values() if frame is not None]
         if scenes:
+            _refuse_scene_without_gt(protocol, [p for p, f in found.items() if f is None])
             return scenes
     try:
         return _single_scene(root)

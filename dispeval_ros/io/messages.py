@@ -24,7 +24,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dispeval_ros.core.camera import Camera
-from dispeval_ros.core.transforms import StaticTransform, matrix_from_pose
+from dispeval_ros.core.transforms import StaticTransform, check_rotation, matrix_from_pose
 from dispeval_ros.errors import CalibrationError, ConfigurationError, InputError
 
 __all__ = [
@@ -579,7 +579,7 @@ def rectified_camera_from_info(info: Any, topic: str = "") -> RectifiedView:
         values = np.asarray(raw, dtype=np.float64).reshape(-1)
         # An all-zero R is what an uncalibrated driver publishes: treat it as the identity.
         if values.size == 9 and values.any():
-            rectification = values.reshape(3, 3)
+            rectification = check_rotation(values.reshape(3, 3), f"{where}: R")
         elif values.size != 9:
             raise CalibrationError(f"{where}: R must have 9 values, got {values.size}")
     header = _field(info, ("header",), where)

@@ -207,6 +207,21 @@ class CoreConfig:
             raise names.error(
                 f"{names.of('gt_topic')} is empty: name the ground-truth topic", "gt_topic"
             )
+        others = {
+            self.gt_topic,
+            self.left_image_topic,
+            self.right_image_topic,
+            *self.methods.values(),
+            *self.right_views.values(),
+        }
+        for info in ("left_info_topic", "right_info_topic"):
+            topic = getattr(self, info)
+            if topic is not None and topic in others:  # else its type check would be skipped
+                raise names.error(
+                    f"{names.of(info)} {topic} is also the ground-truth, an image or a "
+                    "disparity topic: name the sensor_msgs/CameraInfo topic",
+                    info,
+                )
 
     def _normalise(self) -> None:
         """Plain dicts and tuples, whatever was given: equal configurations compare equal.

@@ -396,6 +396,10 @@ def test_rectified_camera_from_info() -> None:
     np.testing.assert_array_equal(view.rectification, RECT)
     info.r = np.zeros(9)  # uncalibrated drivers: identity
     np.testing.assert_array_equal(rectified_camera_from_info(info).rectification, np.eye(3))
+    for wrong in (2 * np.eye(3), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
+        info.r = wrong.reshape(-1)  # scaled, a reflection (det −1), not finite
+        with pytest.raises(CalibrationError, match="CameraInfo on /l: R is not a rotation"):
+            rectified_camera_from_info(info, "/l")
 
 
 def test_read_extrinsic(tmp_path: Path) -> None:

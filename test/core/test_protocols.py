@@ -398,7 +398,11 @@ def test_middeval3_training_weighted_average(shared_data: Path, tmp_path: Path) 
         write_pfm(target / "disp0GTPLUS.pfm", frame.gt + F(0.75))
     run = evaluate_benchmark("middeval3", tree, {"NOISY": None, "GTPLUS": None})
     assert len(run.frames) == 15
-    weights = [MIDDEVAL3_WEIGHTS[name] for name in run.frames]
+    # The weights of the public source (ITSA eval.py), written out here, not read from the table.
+    halved = {"PianoL", "Playroom", "Playtable", "Shelves", "Vintage"}
+    weights = [0.5 if name in halved else 1.0 for name in run.frames]
+    assert sum(weights) == 12.5
+    assert weights == [MIDDEVAL3_WEIGHTS[name] for name in run.frames]
     for method in ("NOISY", "GTPLUS"):
         frames = run.results[method]
         for column in get_protocol("middeval3").columns:
@@ -410,6 +414,64 @@ def test_middeval3_training_weighted_average(shared_data: Path, tmp_path: Path) 
     assert run.summary["GTPLUS"]["all"]["bad 1.0"] == 0.0
     assert run.models is not None
     assert run.models.groups["GTPLUS"] == 1
+
+
+def test_middeval3_nan_estimates_count_as_invalid(shared_data: Path) -> None:
+    """NaN is no estimate, as INF: never a perfect pixel (the SDK's ``d == INFINITY`` misses it)."""
+    frame = load_frame(discover(get_protocol("middeval3"), shared_data / MIDDEVAL3 / "Teddy")[0])
+    nan = middeval3_frame("a", frame.gt, np.full_like(frame.gt, np.nan), None, frame.ndisp)
+    assert nan.values["all"]["invalid"] == 100.0
+    assert nan.values["all"]["bad 0.5"] == 100.0
+    assert math.isnan(nan.values["all"]["avgErr"])
+    estimate = middeval3_estimate(frame.gt, 3, frame.ndisp or 0)
+    holes = np.zeros(frame.gt.shape, bool)
+    holes[::7, ::5] = True
+    with_nan = middeval3_frame("a", frame.gt, np.where(holes, np.nan, estimate), None, frame.ndisp)
+    with_inf = middeval3_frame("a", frame.gt, np.where(holes, np.inf, estimate), None, frame.ndisp)
+    assert with_nan.values == with_inf.values
+    assert with_nan.values["all"]["invalid"] > 0
+
+
+def test_eth3d_nan_estimates_count_as_missing(shared_data: Path) -> None:
+    folder = shared_data / "eth3d-two-view" / "terrace"
+    frame = load_frame(discover(get_protocol("eth3d"), folder)[0])
+    result = eth3d_frame("a", frame.gt, np.full_like(frame.gt, np.nan), None)
+    assert result.values["all"]["coverage"] == 0.0
+
+
+def test_scene_folder_without_gt_is_refused(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Dropping it would change the weighted average without a word: one line naming it."""
+    tree = tmp_path / "trainingQ"
+    for scene in ("Adirondack", "Teddy"):
+        target = tree / scene
+        target.mkdir(parents=True)
+        for name in ("disp0GT.pfm", "im0.png", "calib.txt"):
+            (target / name).symlink_to(shared_data / MIDDEVAL3 / scene / name)
+    (tree / "Teddy" / "disp0GT.pfm").unlink()
+    (tree / "results").mkdir()  # not a scene (no im0.png): not in the way
+    code = main(["eval", "--protocol", "middeval3", "--scene", str(tree), "--est", "NOISY"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"{tree / 'Teddy'}: a Middlebury MiddEval3 scene folder without disp0GT.pfm" in err
+    assert len(err.strip().splitlines()) == 1
+    assert [f.name for f in discover(get_protocol("eth3d"), shared_data / "eth3d-two-view")] == [
+        "playground",
+        "terrace",
+    ]
+
+
+@pytest.mark.parametrize("option", [["--delta", "2"], ["--missing", "ignore"]])
+def test_project_options_do_not_apply_to_a_protocol(
+    shared_data: Path, capsys: pytest.CaptureFixture[str], option: list[str]
+) -> None:
+    scene = str(shared_data / MIDDEVAL3 / "Teddy")
+    code = main(["eval", "--protocol", "middeval3", "--scene", scene, "--est", "X", *option])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"{option[0]} does not apply with --protocol" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 # --------------------------------------------------------------------------------- ETH3D

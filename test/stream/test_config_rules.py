@@ -123,6 +123,20 @@ CASES: list[Case] = [
         "the ground-truth topic /sgbm is also a method's topic",
     ),
     (
+        "CameraInfo topic is the GT's",  # its type check would be skipped: every frame fails
+        ["--gt", "/gt", *METHODS, "--camera-info", "/gt", "/r"],
+        {"left_camera_info": "/gt", "right_camera_info": "/r"},
+        "--camera-info LEFT /gt is also the ground-truth, an image or a disparity topic",
+        "parameter left_camera_info /gt is also the ground-truth, an image or a disparity topic",
+    ),
+    (
+        "CameraInfo topic is a method's",
+        ["--gt", "/gt", *METHODS, "--camera-info", "/l", "/bm"],
+        {"left_camera_info": "/l", "right_camera_info": "/bm"},
+        "--camera-info RIGHT /bm is also the ground-truth, an image or a disparity topic",
+        "parameter right_camera_info /bm is also the ground-truth, an image or a disparity topic",
+    ),
+    (
         "right view of an unknown method",
         [*IMAGES, *METHODS, "--right-view", "nobody=/r"],
         {"gt_kind": "none", "gt_topic": "", **ROS_IMAGES, "right_views": ("nobody:/r",)},

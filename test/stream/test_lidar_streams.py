@@ -235,6 +235,26 @@ def test_camera_info_of_another_size_is_reported() -> None:
     assert "CameraInfo on /left is 80×50 but the disparity is 60×40" in problem[1]
 
 
+def test_camera_info_whose_r_is_not_a_rotation_is_reported_then_recovers() -> None:
+    """A scaled R (2·I) would move every point to wrong pixels: refused per frame, as the
+    extrinsic is (the same rotation check), naming the topic."""
+    core = _core(extrinsic=tuple(LIDAR_TO_OPTICAL.reshape(-1)))
+    info = camera_info_to_msg(TYPESTORE, rig_camera(), SMALL[1], SMALL[0], 0, CAMERA_FRAME, False)
+    good_r = np.array(info.r, dtype=np.float64)
+    info.r = (2.0 * np.eye(3)).reshape(-1)
+    core.push("/left", info)
+    result = _frame(core, 1, cloud_to_msg(TYPESTORE, _wall_cloud(), 1, LIDAR_FRAME))
+    assert result.scores == {}
+    (problem,) = result.problems
+    assert "CameraInfo on /left: R is not a rotation matrix" in problem[1]
+    assert "\n" not in problem[1]
+    info.r = good_r
+    core.push("/left", info)
+    result = _frame(core, 2, cloud_to_msg(TYPESTORE, _wall_cloud(), 2, LIDAR_FRAME))
+    assert result.problems == []
+    assert result.scores["m"]["all"]["n"] > 0
+
+
 def test_config_record_and_defaults() -> None:
     config = _core().config
     assert config.topics["/points"] == "sensor_msgs/msg/PointCloud2"

@@ -37,6 +37,7 @@ from dispeval_ros.core.protocols.kitti2015 import (
 from dispeval_ros.core.protocols.middeval3 import (
     MIDDEVAL3,
     MIDDEVAL3_WEIGHTS,
+    MIDDEVAL3_WEIGHTS_SOURCE,
     middeval3_frame,
     middeval3_summary,
 )
@@ -59,6 +60,7 @@ __all__ = [
     "KITTI2015",
     "MIDDEVAL3",
     "MIDDEVAL3_WEIGHTS",
+    "MIDDEVAL3_WEIGHTS_SOURCE",
     "OFFICIAL",
     "PROTOCOLS",
     "STREAM_PRESETS",

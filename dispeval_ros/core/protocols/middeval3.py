@@ -1,8 +1,8 @@
 """MiddEval3 SDK ``evaldisp``, exactly, and the weighted training-table average.
 
 ``err = |d − gt|`` in float32, the error sum ``serr`` accumulated in a float32 in row-major
-order, the percentages stored in a float; invalid = ``INF`` only, valid estimates clipped to
-``[0, ndisp]``.
+order, the percentages stored in a float; invalid = ``INF`` (and NaN, which the SDK would score
+as a perfect pixel), valid estimates clipped to ``[0, ndisp]``.
 """
 
 from __future__ import annotations
@@ -31,25 +31,33 @@ from dispeval_ros.core.protocols.common import (
 from dispeval_ros.errors import ShapeMismatchError
 
 #: MiddEval3 training scenes and the weights of the weighted average of the training table:
-#: the radiometric / rectification variants of a scene that is also in the set (``E``, ``L``,
-#: ``P``) count half. Scenes not listed (e.g. test scenes) get weight 1.
+#: PianoL, Playroom, Playtable, Shelves and Vintage count half, the others 1 (15 scenes, total
+#: weight 12.5). Scenes not listed (e.g. test scenes) get weight 1.
+#: Source: ``MIDDEVAL3_WEIGHTS_SOURCE``.
 MIDDEVAL3_WEIGHTS: dict[str, float] = {
     "Adirondack": 1.0,
     "ArtL": 1.0,
     "Jadeplant": 1.0,
     "Motorcycle": 1.0,
-    "MotorcycleE": 0.5,
+    "MotorcycleE": 1.0,
     "Piano": 1.0,
     "PianoL": 0.5,
     "Pipes": 1.0,
-    "Playroom": 1.0,
-    "Playtable": 1.0,
-    "PlaytableP": 0.5,
+    "Playroom": 0.5,
+    "Playtable": 0.5,
+    "PlaytableP": 1.0,
     "Recycle": 1.0,
-    "Shelves": 1.0,
+    "Shelves": 0.5,
     "Teddy": 1.0,
-    "Vintage": 1.0,
+    "Vintage": 0.5,
 }
+
+#: Where ``MIDDEVAL3_WEIGHTS`` come from (the SDK itself has no weights), written into the JSON.
+MIDDEVAL3_WEIGHTS_SOURCE = (
+    "waychin-weiqin/ITSA @ e345f3927ebec0ac6fe3c2f1c628eeccf879ab53 : eval.py (halves PianoL, "
+    "Playroom, Playtable, Shelves, Vintage and divides by 12.5); its author confirms them as the "
+    "official MiddEval3 weights in https://github.com/waychin-weiqin/ITSA/issues/2"
+)
 
 
 def middeval3_frame(
@@ -80,8 +88,10 @@ def middeval3_frame(
             f"{gt.shape[1]}×{gt.shape[0]}; MiddEval3 needs the GT size exactly 1, 2 or 4 times it"
         )
     d = np.repeat(np.repeat(estimate, scale, axis=0), scale, axis=1) * F32(scale)
-    known = ~np.isposinf(gt)
-    valid = ~np.isposinf(d)
+    # NaN counts as INF (no estimate / unknown GT): the SDK's ``d == INFINITY`` test lets NaN
+    # through, where every comparison is false, so it would score as a perfect pixel.
+    known = ~(np.isposinf(gt) | np.isnan(gt))
+    valid = ~(np.isposinf(d) | np.isnan(d))
     maxdisp = 99999 if ndisp is None else math.ceil(ndisp / scale)
     maxd = F32(scale * maxdisp)
     with np.errstate(invalid="ignore"):
@@ -160,11 +170,12 @@ MIDDEVAL3 = Protocol(
     settings={
         "bad_thresholds": list(_BAD),
         "bad_counts_invalid": True,
-        "invalid": "+inf estimate",
+        "invalid": "+inf or NaN estimate",
         "clip": "valid estimates to [0, ndisp] (scaled with the GT)",
         "avgErr_rms_quantiles_over": "valid estimates",
         "quantile_index": "floor(float32(N) * float32(q))",
         "weights": MIDDEVAL3_WEIGHTS,
+        "weights_source": MIDDEVAL3_WEIGHTS_SOURCE,
     },
     frame_function=_frame,
     summary_function=double_summary(middeval3_summary),
