@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from dispeval_ros.errors import InputError
-from dispeval_ros.io.bags.chunked_mcap import fast_then_slow, mcap_summary, open_chunked
+from dispeval_ros.io.bags.chunked_mcap import (
+    NotChunked,
+    fast_then_slow,
+    mcap_summary,
+    open_chunked,
+)
 from dispeval_ros.io.bags.common import (
     MAX_TIME,
     MessageTuple,
@@ -97,6 +103,15 @@ class RosbagsBackend:
         yield from decoded_messages(
             self.path, "bag", payloads, lambda item: reader.deserialize(*item), on_error
         )
+
+    def log_times(self) -> Iterator[int]:
+        """Every message's log time, the payloads left undeserialised (a planning pass)."""
+        chunked = self.chunked
+        if chunked is not None:
+            with contextlib.suppress(NotChunked):
+                yield from (log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None))
+                return
+        yield from (log_ns for _, log_ns, _ in self._reader.messages())
 
     def close(self) -> None:
         if self.chunked is not None:
