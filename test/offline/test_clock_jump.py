@@ -17,9 +17,10 @@ import sys
 from pathlib import Path
 
 import pytest
-from bag_support import METHODS, bag_args
+from bag_support import METHODS, as_ros1, bag_args
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.io.bags import BagSource
 from dispeval_ros.offline import units as units_module
 from dispeval_ros.offline.make_bag import (
     START_NS,
@@ -45,12 +46,23 @@ def write_jumped(path: Path, storage: str) -> Path:
     return path
 
 
-@pytest.fixture(scope="module", params=["rosbag2-sqlite3", "rosbag2-mcap", "mcap"])
+@pytest.fixture(scope="module", params=["rosbag2-sqlite3", "rosbag2-mcap", "mcap", "ros1"])
 def jumped(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The jumped drive in rosbag2 (sqlite3, MCAP: read by rosbags) and plain MCAP."""
+    """The jumped drive in rosbag2 (sqlite3, MCAP), ROS 1 (read by rosbags) and plain MCAP."""
     root = tmp_path_factory.mktemp("jumped")
+    if request.param == "ros1":
+        as_ros1(write_jumped(root / "drive2", "rosbag2-sqlite3"), root / "drive.bag")
+        return root / "drive.bag"
     name = "drive.mcap" if request.param == "mcap" else "drive"
     return write_jumped(root / name, request.param)
+
+
+def test_log_times_are_those_of_the_messages(jumped: Path) -> None:
+    """What planning reads from each reader's index is every message's log time."""
+    with BagSource(jumped) as source:
+        read = sorted(log_ns for _, log_ns, _ in source.messages(list(source.topics)))
+        assert sorted(source.log_times()) == read
+        assert len(read) == source.message_count
 
 
 PLAN = """

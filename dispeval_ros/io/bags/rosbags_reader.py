@@ -25,6 +25,31 @@ from dispeval_ros.io.bags.common import (
 )
 
 
+def _log_times(reader: Any) -> Iterator[int]:
+    """A rosbags reader's log times from what it indexes, else from a pass over its messages.
+
+    ROS 1 readers hold every message's time in their connection indexes; rosbag2 sqlite3
+    storage has a timestamp column (queried without reading the payloads).
+    """
+    indexes = getattr(reader, "indexes", None)
+    if isinstance(indexes, dict) and indexes:
+        for entries in indexes.values():
+            yield from (int(entry.time) for entry in entries)
+        return
+    storages = getattr(getattr(reader, "storage", None), "storages", None) or [None]
+    databases: list[Any] = [getattr(storage, "dbconn", None) for storage in storages]
+    if None not in databases:
+        try:
+            query = "SELECT timestamp FROM messages"
+            times = [int(row[0]) for database in databases for row in database.execute(query)]
+        except Exception:  # another layout: read the messages
+            times = None
+        if times is not None:
+            yield from times
+            return
+    yield from (log_ns for _, log_ns, _ in reader.messages())
+
+
 class RosbagsBackend:
     """rosbag2 folders, raw ``.db3`` files and ROS 1 bags through rosbags' ``AnyReader``.
 
@@ -111,7 +136,8 @@ class RosbagsBackend:
             with contextlib.suppress(NotChunked):
                 yield from (log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None))
                 return
-        yield from (log_ns for _, log_ns, _ in self._reader.messages())
+        for reader in self._reader.readers:
+            yield from _log_times(reader)
 
     def close(self) -> None:
         if self.chunked is not None:
