@@ -76,7 +76,7 @@ def bag_location(path: Path) -> str:
 
 
 def plan_units(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> list[Unit]:
-    """Cut a bag's time span into slices; the plan depends only on the bag and the slice length."""
+    """Cut a bag into slices where its messages are; the plan depends only on the bag and slice."""
     return plan_bag(path, sequence, config, slice_ns).units
 
 
