@@ -26,7 +26,7 @@ from dispeval_ros.offline.units import (
     Unit,
     UnitResult,
     UnitRows,
-    auto_slice_ns,
+    auto_slice_for,
     close_bags,
     evaluate_unit,
     failed_result,
@@ -42,6 +42,7 @@ __all__ = [
     "RunReport",
     "Unit",
     "UnitResult",
+    "bag_location",
     "evaluate_bags",
     "evaluate_unit",
     "plan_units",
@@ -65,8 +66,17 @@ def sequence_names(bags: Sequence[Path]) -> list[str]:
     return names
 
 
+def bag_location(path: Path) -> str:
+    """How the results database names a bag: its resolved absolute path.
+
+    ``bags/x``, ``./bags/x`` and ``/abs/bags/x`` are one bag, so ``--resume`` from any
+    spelling (or folder) continues the run, and only another bag is refused.
+    """
+    return str(Path(path).resolve())
+
+
 def plan_units(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> list[Unit]:
-    """Cut a bag's time span into slices; the plan depends only on the bag and the slice length."""
+    """Cut a bag into slices where its messages are; the plan depends only on the bag and slice."""
     return plan_bag(path, sequence, config, slice_ns).units
 
 
@@ -182,12 +192,12 @@ def _plan(
         if chosen is None:
             source = open_bag(path)
             margin = config.tolerance_ns + config.lateness_ns
-            chosen = auto_slice_ns(source.start_ns, source.end_ns, workers, margin)
+            chosen = auto_slice_for(source, workers, margin)
         plan = plan_bag(path, sequence, config, chosen)
         if plan.warning is not None and warn is not None:
             warn(plan.warning)
         info = plan.info if slice_ns is not None else {**plan.info, "slice_ns": chosen}
-        store.set_sequence(sequence, str(path), info)
+        store.set_sequence(sequence, bag_location(path), info)
         done = store.done_units(sequence)
         skipped += len(done)
         failed_before += len(store.failed_units(sequence) - done)

@@ -50,6 +50,8 @@ READ_AHEAD = 16
 """Messages read ahead of the scoring (a few frames: each holds its messages in memory)."""
 FRAMES_IN_FLIGHT_PER_THREAD = 2
 """Frames handed to each scoring thread ahead of the oldest one collected (none waits idle)."""
+DENSE_SLICES = 10_000
+"""Bags of up to this many slices (or twice their messages) are cut without a pass over them."""
 _FIRST, _LAST = -(2**62), 2**62
 _T = TypeVar("_T")
 
@@ -197,11 +199,57 @@ def keep_frames_on_the_heap() -> None:
 
 
 def auto_slice_ns(start_ns: int, end_ns: int, workers: int, margin_ns: int = 0) -> int:
-    """A slice length for a bag: about :data:`UNITS_PER_WORKER` units per worker, in bounds."""
+    """A slice length for a bag: about :data:`UNITS_PER_WORKER` units per worker, in bounds.
+
+    ``end_ns - start_ns``: the log time the bag's messages occupy (see
+    :func:`occupied_ns`), not its span when its clock jumped.
+    """
     low, high = AUTO_SLICE_BOUNDS_NS
     low = max(low, 2 * margin_ns)
     wanted = (end_ns - start_ns) // max(1, UNITS_PER_WORKER * workers)
     return int(min(high, max(low, wanted)) // 100_000_000 * 100_000_000)
+
+
+def auto_slice_for(source: BagSource, workers: int, margin_ns: int = 0) -> int:
+    """``--slice auto`` for a bag, from the log time its messages occupy."""
+    grain = max(AUTO_SLICE_BOUNDS_NS[0], 2 * margin_ns)
+    return auto_slice_ns(0, occupied_ns(source, grain), workers, margin_ns)
+
+
+def occupied_slices(source: BagSource, slice_ns: int) -> list[int]:
+    """The indexes ``k`` of the slices ``[start + k·slice, start + (k+1)·slice)`` to plan.
+
+    Every slice up to the end when there are no more of them than :func:`dense_limit` (no
+    pass over the bag); else those the bag's log times fall in (one pass that decodes
+    nothing), so a bag whose clock jumped (1970, then 2023) has as many as its messages fill,
+    not one per slice of the 53 years between.
+    """
+    slices = (source.end_ns - source.start_ns) // slice_ns + 1
+    if slices <= dense_limit(source):
+        return list(range(slices))
+    return _filled_slices(source, slice_ns)
+
+
+def _filled_slices(source: BagSource, slice_ns: int) -> list[int]:
+    """The slices a message's log time falls in (at least the first)."""
+    start = source.start_ns
+    found: set[int] = set()
+    with contextlib.suppress(DispevalError):  # damaged storage: the units report it
+        found.update(max(0, (log_ns - start) // slice_ns) for log_ns in source.log_times())
+    return sorted(found) or [0]
+
+
+def dense_limit(source: BagSource) -> int:
+    """Up to this many slices, every slice of the span is a unit (bounded by the messages)."""
+    return max(2 * source.message_count, DENSE_SLICES)
+
+
+def occupied_ns(source: BagSource, grain_ns: int) -> int:
+    """The log time a bag's messages occupy, to ``grain_ns``: its span unless its clock jumped."""
+    span = source.end_ns - source.start_ns
+    if span // grain_ns + 1 <= dense_limit(source):
+        return span
+    return len(_filled_slices(source, grain_ns)) * grain_ns
 
 
 def check_topics(source: BagSource, config: CoreConfig) -> None:
@@ -267,27 +315,25 @@ def stamp_offset_warning(path: Path, offset_ns: int | None, slice_ns: int) -> st
 
 
 def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> BagPlan:
-    """Check the bag's topics and cut its log-time span into slices of ``slice_ns``.
+    """Check the bag's topics and cut its log time into units where its messages are.
 
-    The plan depends only on the bag and the slice length, so a resumed run (with any
-    executor) finds the same units. The info records how far the first ground-truth frame's
-    stamp is from its log time (``stamp_offset_ns``: log time minus stamp).
+    Each occupied slice of ``slice_ns`` (:func:`occupied_slices`) starts a unit, named by
+    its index, that runs to the next one: the units cover all time, so every message (and
+    frame) is in exactly one, and an empty stretch adds none. The plan depends only on the
+    bag and the slice length, so a resumed run (with any executor) finds the same units.
+    The info records how far the first ground-truth frame's stamp is from its log time
+    (``stamp_offset_ns``: log time minus stamp).
     """
     source = open_bag(path)
     check_topics(source, config)
-    start, end = source.start_ns, source.end_ns
+    start = source.start_ns
     margin = config.tolerance_ns + config.lateness_ns
-    units: list[Unit] = []
-    edge = start
-    while True:
-        stop = edge + slice_ns
-        units.append(Unit(path, sequence, f"{len(units):06d}", edge, stop, margin))
-        if stop > end:
-            break
-        edge = stop
-    units[0] = Unit(path, sequence, units[0].name, _FIRST, units[0].stop_ns, margin)
-    last = units[-1]
-    units[-1] = Unit(path, sequence, last.name, last.start_ns, _LAST, margin)
+    slices = occupied_slices(source, slice_ns)
+    edges = [_FIRST, *(start + k * slice_ns for k in slices[1:]), _LAST]
+    units = [
+        Unit(path, sequence, f"{k:06d}", low, high, margin)
+        for k, low, high in zip(slices, edges[:-1], edges[1:], strict=True)
+    ]
     info: dict[str, object] = {
         "format": source.format,
         "start_ns": source.start_ns,

@@ -84,6 +84,10 @@ class Backend(Protocol):
         on_error: Callable[[InputError], None] | None,
     ) -> Iterator[MessageTuple]: ...
 
+    def log_times(self) -> Iterator[int]:
+        """Every message's log time, unordered, a time possibly twice (cheap: not decoded)."""
+        ...
+
     def close(self) -> None: ...
 
 

@@ -6,6 +6,7 @@ the damage are yielded, then an ``InputError`` says where it broke.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import inspect
 from collections.abc import Callable, Iterator, Sequence
@@ -13,7 +14,12 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from dispeval_ros.errors import DispevalError, InputError
-from dispeval_ros.io.bags.chunked_mcap import ChunkedMcap, fast_then_slow, open_chunked
+from dispeval_ros.io.bags.chunked_mcap import (
+    ChunkedMcap,
+    NotChunked,
+    fast_then_slow,
+    open_chunked,
+)
 from dispeval_ros.io.bags.common import (
     MAX_TIME,
     MessageTuple,
@@ -299,6 +305,26 @@ class McapBackend:
                 yield topic, log_ns, msg
         if damage is not None:
             raise InputError(damage)
+
+    def log_times(self) -> Iterator[int]:
+        """Every message's log time, the payloads left undecoded (a planning pass).
+
+        Through the chunks where the file is indexed, else by scanning it up to any damage.
+        """
+        chunked = self.chunked
+        if chunked is not None:
+            with contextlib.suppress(NotChunked):
+                yield from (log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None))
+                return
+        if self._indexed:
+            yield from (message.log_time for _, _, message in self._reader.iter_messages())
+            return
+        from mcap.records import Message
+
+        with self._file.open("rb") as raw, contextlib.suppress(Exception):  # up to the damage
+            for record in self._records(_StrictFile(raw)):
+                if isinstance(record, Message):
+                    yield record.log_time
 
     def close(self) -> None:
         if self.chunked is not None:

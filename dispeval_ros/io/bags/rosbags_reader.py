@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from dispeval_ros.errors import InputError
-from dispeval_ros.io.bags.chunked_mcap import fast_then_slow, mcap_summary, open_chunked
+from dispeval_ros.io.bags.chunked_mcap import (
+    NotChunked,
+    fast_then_slow,
+    mcap_summary,
+    open_chunked,
+)
 from dispeval_ros.io.bags.common import (
     MAX_TIME,
     MessageTuple,
@@ -17,6 +23,31 @@ from dispeval_ros.io.bags.common import (
     one_line,
     ros2_type,
 )
+
+
+def _log_times(reader: Any) -> Iterator[int]:
+    """A rosbags reader's log times from what it indexes, else from a pass over its messages.
+
+    ROS 1 readers hold every message's time in their connection indexes; rosbag2 sqlite3
+    storage has a timestamp column (queried without reading the payloads).
+    """
+    indexes = getattr(reader, "indexes", None)
+    if isinstance(indexes, dict) and indexes:
+        for entries in indexes.values():
+            yield from (int(entry.time) for entry in entries)
+        return
+    storages = getattr(getattr(reader, "storage", None), "storages", None) or [None]
+    databases: list[Any] = [getattr(storage, "dbconn", None) for storage in storages]
+    if None not in databases:
+        try:
+            query = "SELECT timestamp FROM messages"
+            times = [int(row[0]) for database in databases for row in database.execute(query)]
+        except Exception:  # another layout: read the messages
+            times = None
+        if times is not None:
+            yield from times
+            return
+    yield from (log_ns for _, log_ns, _ in reader.messages())
 
 
 class RosbagsBackend:
@@ -97,6 +128,16 @@ class RosbagsBackend:
         yield from decoded_messages(
             self.path, "bag", payloads, lambda item: reader.deserialize(*item), on_error
         )
+
+    def log_times(self) -> Iterator[int]:
+        """Every message's log time, the payloads left undeserialised (a planning pass)."""
+        chunked = self.chunked
+        if chunked is not None:
+            with contextlib.suppress(NotChunked):
+                yield from (log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None))
+                return
+        for reader in self._reader.readers:
+            yield from _log_times(reader)
 
     def close(self) -> None:
         if self.chunked is not None:

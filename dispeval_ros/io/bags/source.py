@@ -191,6 +191,16 @@ class BagSource:
             return iter(())
         return self._backend.messages(wanted, start_ns, stop_ns, on_error)
 
+    def log_times(self) -> Iterator[int]:
+        """The log time of every message, in no set order, a time possibly more than once.
+
+        One pass that decodes nothing (chunk by chunk where the bag is indexed), for planning
+        by where the messages are; stops at damaged storage.
+        """
+        if self._closed:
+            raise InputError(f"{self.path}: bag is closed")
+        return self._backend.log_times()
+
     def serialized_messages(
         self, topics: Sequence[str]
     ) -> Iterator[tuple[str, int, bytes | memoryview]] | None:
