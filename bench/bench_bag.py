@@ -47,7 +47,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
-from dispeval_ros.offline.units import keep_frames_on_the_heap
+from dispeval_ros.offline.memory import keep_frames_on_the_heap
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.testbed import default_methods
 
