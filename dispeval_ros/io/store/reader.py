@@ -24,6 +24,7 @@ from dispeval_ros.io.store.schema import (
     _check_tables,
     _connect,
     _Layout,
+    _shorten,
     _state,
     _where,
 )
@@ -74,6 +75,22 @@ class ResultsReader:
             connection.close()
             raise
         return cls(connection, path, writable=False)
+
+    def verify(self) -> None:
+        """Every page reads back (``PRAGMA quick_check``), else one line naming the file.
+
+        :meth:`open` reads the header and the table list only; a file damaged further in
+        would otherwise be copied (``merge``) as if whole and noticed by ``report`` alone.
+        """
+        try:
+            found = [row[0] for row in self._db.execute("PRAGMA quick_check").fetchall()]
+        except sqlite3.DatabaseError as error:
+            found = [str(error)]
+        if found != ["ok"]:
+            why = _shorten(" ".join(found[0].split()))
+            raise InputError(
+                f"{self.path}: the results database is damaged ({why}); it cannot be read whole"
+            )
 
     def close(self) -> None:
         """Close the connection (a writer's WAL is checkpointed into the database file)."""
