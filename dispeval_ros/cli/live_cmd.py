@@ -92,7 +92,7 @@ def run_command(args: argparse.Namespace) -> int:
 
     for method in config.methods:
         vector_topic(method)
-    alarms = AlarmThresholds.parse(args.warn, args.error)
+    alarms = AlarmThresholds.parse(args.warn, args.error, config.scored_measures)
     summary_config = SummarizerConfig(
         args.out, args.objective_measures, args.objectives, args.summary_every, args.resume
     )

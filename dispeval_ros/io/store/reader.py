@@ -24,9 +24,9 @@ from dispeval_ros.io.store.schema import (
     _check_tables,
     _connect,
     _Layout,
-    _shorten,
     _state,
     _where,
+    damaged,
 )
 
 _Store = TypeVar("_Store", bound="ResultsReader")
@@ -87,10 +87,7 @@ class ResultsReader:
         except sqlite3.DatabaseError as error:
             found = [str(error)]
         if found != ["ok"]:
-            why = _shorten(" ".join(found[0].split()))
-            raise InputError(
-                f"{self.path}: the results database is damaged ({why}); it cannot be read whole"
-            )
+            raise damaged(self.path, found[0])
 
     def close(self) -> None:
         """Close the connection (a writer's WAL is checkpointed into the database file)."""
