@@ -73,6 +73,7 @@ def run_command(args: argparse.Namespace) -> int:
 
     from dispeval_ros.dds.player import BagPlayer
     from dispeval_ros.dds.transport import DdsTransport
+
     transport = DdsTransport(domain)
     stop = threading.Event()
     previous = install_stop_handlers(stop)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from bag_support import bag_args
 from refusal_support import assert_refused
 
 from dispeval_ros.cli.main import main
@@ -98,3 +99,21 @@ def test_play_refuses_a_missing_bag_before_the_transport(
     err = capsys.readouterr().err
     assert_refused(code, err, "nobag")
     assert NO_TRANSPORT not in err
+
+
+def test_live_refuses_an_unusable_out_before_the_transport(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file as --out, or results there without --resume, can never take this run's results."""
+    (tmp_path / "afile").write_text("x")
+    held = tmp_path / "held"
+    bag = tmp_path / "drive"
+    write_bag(bag, synthetic_frames(2, 64, 32, 10.0, seed=6))
+    assert main(bag_args(bag, held, "--slice", "0.2")) == 0
+    capsys.readouterr()
+    for out, needle in ((tmp_path / "afile", "is a file"), (held, "already holds results")):
+        code = main(live(out))
+        err = capsys.readouterr().err
+        assert_refused(code, err, needle)
+        assert NO_TRANSPORT not in err
+    assert_refused(main(live(held, "--resume")), capsys.readouterr().err, NO_TRANSPORT)

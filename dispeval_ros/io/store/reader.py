@@ -23,6 +23,7 @@ from dispeval_ros.io.store.schema import (
     RESULTS_FILE,
     _check_tables,
     _connect,
+    _holds_nothing,
     _Layout,
     _state,
     _where,
@@ -118,6 +119,10 @@ class ResultsReader:
             return {}
         rows = self._db.execute("SELECT key, value FROM provenance ORDER BY rowid")
         return {key: json.loads(value) for key, value in rows}
+
+    def holds_units(self) -> bool:
+        """Whether any unit was written (a run that stopped before its first holds nothing)."""
+        return not _holds_nothing(self._db)
 
     def sequences(self) -> list[str]:
         """Sequence names in first-seen order."""
