@@ -135,6 +135,7 @@ def run_command(args: argparse.Namespace) -> int:
     """Evaluate, export, summarise."""
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import bag_location, evaluate_bags
+    from dispeval_ros.offline.executors import ready_executor
     from dispeval_ros.offline.records import BagStreams, record_bag_provenance
     from dispeval_ros.summary import summarize
 
@@ -150,13 +151,15 @@ def run_command(args: argparse.Namespace) -> int:
     }
     progress = Progress("dispeval bag", enabled=not args.quiet)
     digests = BagStreams(args.bags, config)  # hashed while the units run
-    with ResultsStore.create(args.out, record, resume=args.resume) as store:
+    with (
+        ready_executor(config, args.jobs, args.scheduler, args.bags) as engine,
+        ResultsStore.create(args.out, record, resume=args.resume) as store,
+    ):
         report = evaluate_bags(
             args.bags,
             config,
             store,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
+            executor=engine,
             slice_ns=slice_ns,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
             alongside=digests.compute,

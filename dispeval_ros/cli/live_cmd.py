@@ -14,7 +14,7 @@ from typing import Any
 from dispeval_ros.cli import streams
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.dds import environment
-from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.stream.config import QUEUE_SIZE, field_default
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC, VECTOR_LEAF, method_topic
@@ -92,10 +92,11 @@ def run_command(args: argparse.Namespace) -> int:
 
     for method in config.methods:
         vector_topic(method)
-    alarms = AlarmThresholds.parse(args.warn, args.error)
+    alarms = AlarmThresholds.parse(args.warn, args.error, config.scored_measures)
     summary_config = SummarizerConfig(
         args.out, args.objective_measures, args.objectives, args.summary_every, args.resume
     )
+    check_out(args.out, args.resume)
     uri = environment.configure(args.dds_config)
     domain = environment.domain_id(args.domain_id)
     environment.require_cyclonedds()
@@ -128,6 +129,20 @@ def run_command(args: argparse.Namespace) -> int:
         session.stop()
         restore_handlers(previous)
     return _report(session, summary, args.out)
+
+
+def check_out(out: Path, resume: bool) -> None:
+    """``--out`` can take this run's results: refused now, not once the transport is up."""
+    from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file; expected a results folder")
+    path = out / RESULTS_FILE
+    if resume or not path.is_file() or path.stat().st_size == 0:
+        return
+    with ResultsStore.open(path) as store:  # a damaged or foreign file is one line here too
+        if store.holds_units():
+            raise ResultsConflictError(f"{out} already holds results", resumable=True)
 
 
 def _warn(message: str) -> None:

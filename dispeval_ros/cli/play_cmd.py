@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import threading
 import time
@@ -59,17 +60,20 @@ def run_command(args: argparse.Namespace) -> int:
     rate = None if args.fast else args.rate
     if rate is not None and not rate > 0:
         raise ConfigurationError(f"--rate must be positive, got {args.rate}")
-    if args.wait_matched < 0:
-        raise ConfigurationError(f"--wait-matched must not be negative, got {args.wait_matched}")
+    if not (math.isfinite(args.wait_matched) and args.wait_matched >= 0):
+        raise ConfigurationError(
+            f"--wait-matched must be a number of seconds ≥ 0, got {args.wait_matched}"
+        )
+    from dispeval_ros.io.bags import BagSource
+
+    BagSource(args.bag).close()  # a bad path is reported before the transport is needed
     uri = environment.configure(args.dds_config)
     domain = environment.domain_id(args.domain_id)
     environment.require_cyclonedds()
 
     from dispeval_ros.dds.player import BagPlayer
     from dispeval_ros.dds.transport import DdsTransport
-    from dispeval_ros.io.bags import BagSource
 
-    BagSource(args.bag).close()  # a bad path is reported before joining the domain
     transport = DdsTransport(domain)
     stop = threading.Event()
     previous = install_stop_handlers(stop)

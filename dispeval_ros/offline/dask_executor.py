@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import importlib.util
 import logging
 import os
 from collections.abc import Sequence
@@ -37,6 +38,37 @@ def _require_distributed() -> Any:
             "--scheduler needs Dask distributed; install it with pip install 'dispeval_ros[dask]'"
         ) from None
     return distributed
+
+
+SCHEMES = ("tcp",)
+"""Address schemes dispeval connects with as given (no security or extra transport to set up)."""
+_REFUSED_SCHEMES = {
+    "tls": "needs a security configuration (certificates, keys) that dispeval does not take",
+    "ucx": "needs the UCX transport (pip install distributed-ucxx), which is not installed",
+    "ws": "is not tried with dispeval (its tasks run over tcp)",
+    "wss": "needs a security configuration (certificates, keys) that dispeval does not take",
+    "inproc": "only reaches a scheduler inside this very process",
+}
+"""Why each scheme distributed knows cannot be used here (ucx is used once it is installed)."""
+
+
+def check_scheduler(scheduler: str) -> None:
+    """``--scheduler`` names something dispeval can connect to (else one line, before any file)."""
+    if local_workers(scheduler) is not None:
+        return
+    scheme, sep, rest = scheduler.partition("://")
+    if not sep or not scheme or not rest:
+        raise ConfigurationError(
+            f"--scheduler expects tcp://HOST:PORT or local:N, got '{scheduler}'"
+        )
+    if scheme == "ucx" and importlib.util.find_spec("distributed_ucxx") is not None:
+        return
+    if scheme not in SCHEMES:
+        why = _REFUSED_SCHEMES.get(scheme, "is not a Dask address scheme")
+        raise ConfigurationError(
+            f"--scheduler {scheduler}: {scheme}:// {why}; supported: "
+            f"{', '.join(s + '://HOST:PORT' for s in SCHEMES)} or local:N"
+        )
 
 
 def local_workers(scheduler: str) -> int | None:
@@ -74,6 +106,7 @@ class DaskExecutor:
     """Units as Dask tasks, one thread per worker process (the kernels use the cores)."""
 
     def __init__(self, config: CoreConfig, scheduler: str) -> None:
+        check_scheduler(scheduler)
         distributed = _require_distributed()
         self.config = config
         self.scheduler = scheduler
@@ -97,13 +130,9 @@ class DaskExecutor:
                 ) from None
             self._client = distributed.Client(self._cluster)
         else:
-            if "://" not in scheduler:
-                raise ConfigurationError(
-                    f"--scheduler expects tcp://HOST:PORT or local:N, got '{scheduler}'"
-                )
             try:
                 self._client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-            except (OSError, TimeoutError, ValueError) as error:
+            except (OSError, TimeoutError, ValueError, TypeError) as error:
                 raise InputError(
                     f"cannot reach the Dask scheduler at {scheduler} ({_one_line(error)})"
                 ) from None

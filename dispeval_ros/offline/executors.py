@@ -16,7 +16,7 @@ import signal
 import sys
 import threading
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -234,6 +234,27 @@ def check_engine(jobs: int, scheduler: str | None) -> None:
         raise ConfigurationError(f"--jobs must be at least 1, got {jobs}")
     if scheduler is not None and jobs != 1:
         raise ConfigurationError("give --jobs or --scheduler, not both")
+    if scheduler is not None:
+        from dispeval_ros.offline.dask_executor import check_scheduler
+
+        check_scheduler(scheduler)
+
+
+@contextlib.contextmanager
+def ready_executor(
+    config: CoreConfig, jobs: int, scheduler: str | None, paths: Sequence[Path]
+) -> Iterator[Executor]:
+    """The executor of :func:`make_executor`, checked against ``paths``, closed on leaving.
+
+    A run builds it before its results store: a scheduler that cannot be reached, or workers
+    that cannot read the bags, are refused before any file is created.
+    """
+    engine = make_executor(config, jobs, scheduler)
+    try:
+        engine.check(paths)
+        yield engine
+    finally:
+        engine.close()
 
 
 def make_executor(config: CoreConfig, jobs: int = 1, scheduler: str | None = None) -> Executor:

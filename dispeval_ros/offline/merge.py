@@ -3,17 +3,25 @@
 Runs merge when they were made with the same configuration (the bags aside): their units are
 copied in the order given, so merging the results of two halves of a list of bags gives the
 database of one run over the whole list, and summaries and reports cover every sequence.
+
+The merge is written to a scratch folder beside ``OUT`` and renamed into place only once every
+input was read: a refused merge (a unit twice, a damaged input…) leaves ``OUT`` as it was, so
+the corrected command runs as it is (merge has no ``--resume``).
 """
 
 from __future__ import annotations
 
+import os
+import shutil
+import sqlite3
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from dispeval_ros.core.provenance import provenance_record
-from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
 
 PER_RUN_KEYS = ("bags",)
 """Configuration keys that differ between the runs being merged (concatenated in the result)."""
@@ -50,35 +58,78 @@ def merged_config(configs: Sequence[tuple[Path, dict[str, object]]]) -> dict[str
 
 
 def merge_results(out: Path, sources: Sequence[Path]) -> MergeReport:
-    """Write ``out/results.sqlite`` holding every unit of ``sources``, in the order given."""
+    """Write ``out/results.sqlite`` holding every unit of ``sources``, in the order given.
+
+    Nothing is written to ``out`` unless the whole merge succeeds (see the module docstring).
+    """
     if not sources:
         raise ConfigurationError("nothing to merge: give at least one results folder")
+    out = Path(out)
+    _check_target(out)
     stores = []
     try:
         for source in sources:
             stores.append(ResultsStore.open(source))
+            stores[-1].verify()  # a damaged input is refused before anything is copied
         config = merged_config([(store.path, store.config()) for store in stores])
-        units = 0
-        with ResultsStore.create(out, config) as merged:
-            for store in stores:
-                units += merged.add_results(store)
-            merged.set_provenance(
-                provenance_record(
-                    config,
-                    {
-                        "merged": [
-                            {"results": str(store.path), "provenance": store.provenance()}
-                            for store in stores
-                        ]
-                    },
-                )
-            )
-            sequences = len(merged.sequences())
-            path = merged.path
+        scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.merging-", dir=_existing(out.parent)))
+        try:
+            units, sequences = _merge_into(scratch, out / RESULTS_FILE, config, stores)
+            out.mkdir(parents=True, exist_ok=True)
+            _check_target(out)
+            os.replace(scratch / RESULTS_FILE, out / RESULTS_FILE)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
     finally:
         for store in stores:
             store.close()
-    return MergeReport(path, len(stores), sequences, units)
+    return MergeReport(out / RESULTS_FILE, len(stores), sequences, units)
+
+
+def _merge_into(
+    folder: Path, target: Path, config: dict[str, object], stores: Sequence[ResultsStore]
+) -> tuple[int, int]:
+    """Units and sequences written to ``folder``'s new results database (to become ``target``)."""
+    units = 0
+    with ResultsStore.create(folder, config) as merged:
+        merged.path = target  # refusals name the results as the user will find them
+        for store in stores:
+            try:
+                units += merged.add_results(store)
+            except sqlite3.DatabaseError as error:  # damage the opening checks did not reach
+                raise InputError(
+                    f"{store.path}: cannot read the results database ({error})"
+                ) from None
+        merged.set_provenance(
+            provenance_record(
+                config,
+                {
+                    "merged": [
+                        {"results": str(store.path), "provenance": store.provenance()}
+                        for store in stores
+                    ]
+                },
+            )
+        )
+        return units, len(merged.sequences())
+
+
+def _check_target(out: Path) -> None:
+    """``out`` is a folder (or nothing yet) without results: a merge never overwrites one."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out} is a file; merge writes a results folder")
+    if (out / RESULTS_FILE).exists():
+        raise ConfigurationError(
+            f"{out} already holds results ({RESULTS_FILE}); merge into a new folder"
+        )
+
+
+def _existing(folder: Path) -> Path:
+    """The nearest existing folder (the scratch folder is made there, on OUT's file system)."""
+    folder = folder.absolute()
+    while not folder.is_dir():
+        folder = folder.parent
+    return folder
 
 
 def _items(value: object) -> list[object]:

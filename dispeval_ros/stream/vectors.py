@@ -10,13 +10,21 @@ raw accumulator row (``criterion/sums``) so a summarizer rebuilds the exact :cla
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from dispeval_ros.core import Scores, registry
-from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, applies
+from dispeval_ros.core.criteria.base import DEPTH, LEGACY, VISIBILITY
+from dispeval_ros.core.criteria.regions import TEXTURE
+from dispeval_ros.core.measures import (
+    GT_FREE_PREFIX,
+    HIGHER_IS_BETTER,
+    SUM_FIELDS,
+    applies,
+    parse_measures,
+)
 from dispeval_ros.errors import ConfigurationError, InputError
 
 OK, WARN, ERROR = 0, 1, 2
@@ -26,6 +34,11 @@ PROBLEM_KEY = "_problem"
 GROUND_TRUTH = "ground_truth"
 """Status name of problems with the ground truth (no method could be scored on that frame)."""
 META_KEYS = ("_policy", "_relative", "_thresholds", "_overlapping", "_estimate_stamp")
+CRITERION_NAMES = tuple(
+    dict.fromkeys(("all", *VISIBILITY, *DEPTH, *LEGACY, *TEXTURE, "roi", "elsewhere", "unlabelled"))
+)
+"""The criteria a stream's frame can carry (each also as ``gtfree:NAME``): an alarm on any
+other name could never fire, so it is refused with the options."""
 
 
 @dataclass(frozen=True)
@@ -39,9 +52,18 @@ class AlarmThresholds:
     error: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
-    def parse(cls, warn: Sequence[str], error: Sequence[str]) -> AlarmThresholds:
-        """From ``criterion/measure=value`` strings (as ROS string-array parameters)."""
-        return cls(_parse_limits(warn, "warn"), _parse_limits(error, "error"))
+    def parse(
+        cls,
+        warn: Sequence[str],
+        error: Sequence[str],
+        scored: Collection[str] | None = None,
+    ) -> AlarmThresholds:
+        """From ``criterion/measure=value`` strings (as ROS string-array parameters).
+
+        Refuses (one line) what could never alarm: a criterion or measure that does not exist,
+        a measure not among ``scored`` (when given), a value that is not a finite number.
+        """
+        return cls(_parse_limits(warn, "warn", scored), _parse_limits(error, "error", scored))
 
     def level(self, key: str, value: float) -> int:
         """The alarm level of one ``criterion/measure`` value (NaN never alarms)."""
@@ -55,19 +77,45 @@ class AlarmThresholds:
         return OK
 
 
-def _parse_limits(items: Sequence[str], what: str) -> dict[str, float]:
+def _parse_limits(
+    items: Sequence[str], what: str, scored: Collection[str] | None
+) -> dict[str, float]:
     limits = {}
     for item in items:
         key, sep, value = item.partition("=")
         try:
             if not sep or "/" not in key:
                 raise ValueError(item)
-            limits[key.strip()] = float(value)
+            limit = float(value)
         except ValueError:
             raise ConfigurationError(
                 f"alarm {what} threshold '{item}' is not CRITERION/MEASURE=NUMBER (e.g. all/bmp=20)"
             ) from None
+        key = key.strip()
+        why = _never_alarms(key, limit, scored)
+        if why is not None:
+            raise ConfigurationError(f"alarm {what} threshold '{item}': {why}")
+        limits[key] = limit
     return limits
+
+
+def _never_alarms(key: str, limit: float, scored: Collection[str] | None) -> str | None:
+    """Why an alarm on ``key`` at ``limit`` could never fire, or None."""
+    criterion, _, measure = key.rpartition("/")
+    if not math.isfinite(limit):
+        return f"the limit must be a finite number, got {limit}"
+    if criterion.removeprefix(GT_FREE_PREFIX) not in CRITERION_NAMES:
+        return (
+            f"no criterion '{criterion}'; known: {', '.join(CRITERION_NAMES)} "
+            f"(ground-truth-free ones as {GT_FREE_PREFIX}NAME)"
+        )
+    try:
+        parse_measures([measure])
+    except ConfigurationError as error:
+        return str(error)
+    if scored is not None and measure not in scored:
+        return f"measure '{measure}' is not among the measures scored ({', '.join(scored)})"
+    return None
 
 
 @dataclass(frozen=True)

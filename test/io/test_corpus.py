@@ -16,6 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from refusal_support import assert_refused as assert_one_line_error
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io.files import write_pfm
@@ -92,14 +93,6 @@ def run(args: list[str]) -> int:
         return main(args)
     except SystemExit as exit_:
         return int(exit_.code or 0)
-
-
-def assert_one_line_error(code: int, err: str, *needles: str) -> None:
-    assert code == 2, err
-    assert err.count("\n") == 1, err
-    assert "Traceback" not in err, err
-    for needle in needles:
-        assert needle in err, err
 
 
 @pytest.fixture

@@ -23,9 +23,11 @@ from dispeval_ros.io.store.schema import (
     RESULTS_FILE,
     _check_tables,
     _connect,
+    _holds_nothing,
     _Layout,
     _state,
     _where,
+    damaged,
 )
 
 _Store = TypeVar("_Store", bound="ResultsReader")
@@ -75,6 +77,19 @@ class ResultsReader:
             raise
         return cls(connection, path, writable=False)
 
+    def verify(self) -> None:
+        """Every page reads back (``PRAGMA quick_check``), else one line naming the file.
+
+        :meth:`open` reads the header and the table list only; a file damaged further in
+        would otherwise be copied (``merge``) as if whole and noticed by ``report`` alone.
+        """
+        try:
+            found = [row[0] for row in self._db.execute("PRAGMA quick_check").fetchall()]
+        except sqlite3.DatabaseError as error:
+            found = [str(error)]
+        if found != ["ok"]:
+            raise damaged(self.path, found[0])
+
     def close(self) -> None:
         """Close the connection (a writer's WAL is checkpointed into the database file)."""
         self._db.close()
@@ -104,6 +119,10 @@ class ResultsReader:
             return {}
         rows = self._db.execute("SELECT key, value FROM provenance ORDER BY rowid")
         return {key: json.loads(value) for key, value in rows}
+
+    def holds_units(self) -> bool:
+        """Whether any unit was written (a run that stopped before its first holds nothing)."""
+        return not _holds_nothing(self._db)
 
     def sequences(self) -> list[str]:
         """Sequence names in first-seen order."""

@@ -177,14 +177,28 @@ def _config_rows(config: Mapping[str, object]) -> list[tuple[str, str]]:
     ]
 
 
+def damaged(path: Path, why: str) -> InputError:
+    """The one line for a results file SQLite cannot read whole (``why``: what SQLite said)."""
+    return InputError(
+        f"{path}: the results database is damaged ({_shorten(' '.join(why.split()))}); "
+        "it cannot be read whole"
+    )
+
+
 def _check_tables(connection: sqlite3.Connection, path: Path) -> None:
     """Every table of the schema is there (a damaged or hand-edited database is one line)."""
-    present = {
-        name for (name,) in connection.execute("SELECT name FROM sqlite_master WHERE type='table'")
-    }
+    try:
+        present = {
+            name
+            for (name,) in connection.execute("SELECT name FROM sqlite_master WHERE type='table'")
+        }
+        layout = "layout" in present and connection.execute("SELECT COUNT(*) FROM layout")
+        made = bool(layout and layout.fetchone()[0])  # made with the first frame
+    except sqlite3.DatabaseError as error:
+        raise damaged(path, str(error)) from None
     wanted = {statement.split()[2] for statement in _SCHEMA}
-    if "layout" in present and connection.execute("SELECT COUNT(*) FROM layout").fetchone()[0]:
-        wanted.add("frames")  # made with the first frame
+    if made:
+        wanted.add("frames")
     missing = sorted(wanted - present)
     if missing:
         raise InputError(
