@@ -54,10 +54,45 @@ def _raw_mcap(path: Path, topics: Sequence[str]) -> Iterator[tuple[str, int, byt
 
     with path.open("rb") as stream:
         reader = make_reader(stream)
+        try:
+            indexed = reader.get_summary() is not None
+        except Exception:  # no footer or summary: a recording killed mid-write
+            indexed = False
+        if not indexed:
+            yield from _scanned_mcap(path, topics)
+            return
         for _schema, channel, message in reader.iter_messages(
             topics=list(topics), log_time_order=True
         ):
             yield channel.topic, int(message.log_time), bytes(message.data)
+
+
+def _scanned_mcap(path: Path, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
+    """An MCAP without summary, read from its start in file order as the evaluation reads it.
+
+    Up to any damage: then an ``InputError`` saying after how many messages.
+    """
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+
+    wanted = set(topics)
+    channels: dict[int, str] = {}
+    count = 0
+    with path.open("rb") as stream:
+        try:
+            for record in StreamReader(stream, validate_crcs=True).records:
+                if isinstance(record, Channel):
+                    channels[record.id] = record.topic
+                elif isinstance(record, Message):
+                    count += 1
+                    topic = channels.get(record.channel_id)
+                    if topic in wanted:
+                        yield topic, int(record.log_time), bytes(record.data)
+        except Exception as error:
+            raise InputError(
+                f"{path}: MCAP file is damaged or truncated after {count} messages "
+                f"({str(error) or type(error).__name__})"
+            ) from None
 
 
 def _raw_messages(path: Path, fmt: str, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
@@ -79,11 +114,26 @@ def stream_digests(
     """Per topic of ``bag``: ``{"sha256": hex, "messages": count}`` of its serialized messages.
 
     ``source``: the bag already open (its format and topics are taken from it, and the
-    messages read with a reader of their own).
+    messages read with a reader of their own). A bag damaged on the way is an error; see
+    :func:`digests_to_damage` to hash what precedes the damage.
+    """
+    digests, damage = digests_to_damage(bag, topics, source)
+    if damage is not None:
+        raise InputError(damage)
+    return digests
+
+
+def digests_to_damage(
+    bag: Path, topics: Sequence[str], source: BagSource | None = None
+) -> tuple[dict[str, dict[str, object]], str | None]:
+    """:func:`stream_digests` of the messages before any damage, and what the damage is.
+
+    A recording killed mid-write is evaluated up to its damage; its provenance then proves
+    exactly the messages that were scored, and says where reading stopped (None: nowhere).
     """
     if source is None:
         with BagSource(bag) as opened:
-            return stream_digests(bag, topics, opened)
+            return digests_to_damage(bag, topics, opened)
     fmt = source.format
     wanted = [t for t in dict.fromkeys(topics) if t in source.topics]
     digests = {topic: hashlib.sha256() for topic in wanted}
@@ -94,14 +144,16 @@ def stream_digests(
 
     mapped = source.serialized_messages(wanted)  # the same bytes, in the same order, no copy
     stream = library() if mapped is None else fast_then_slow(mapped, library)
+    damage: str | None = None
     try:
         for topic, log_ns, raw in stream:
             digest = digests[topic]
             digest.update(struct.pack("<qQ", log_ns, len(raw)))
             digest.update(raw)
             counts[topic] += 1
-    except InputError:
-        raise
+    except InputError as error:
+        damage = str(error)
     except Exception as error:
-        raise InputError(f"{bag}: cannot read the messages for their sha256 ({error})") from None
-    return {t: {"sha256": digests[t].hexdigest(), "messages": counts[t]} for t in wanted}
+        damage = f"{bag}: cannot read the messages for their sha256 ({error})"
+    hashed = {t: {"sha256": digests[t].hexdigest(), "messages": counts[t]} for t in wanted}
+    return hashed, damage

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from dispeval_ros.core.provenance import provenance_record
-from dispeval_ros.io.provenance import stream_digests
+from dispeval_ros.io.provenance import digests_to_damage
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
@@ -39,11 +39,14 @@ class BagStreams:
         self.streams: dict[str, Any] | None = None
 
     def compute(self) -> None:
-        """Read and hash every scored message of every bag."""
-        self.streams = {
-            sequence: {"bag": str(path), "topics": stream_digests(path, self.topics, source)}
-            for (path, sequence), source in zip(self.bags, self.sources, strict=True)
-        }
+        """Read and hash every scored message of every bag (up to any damage, as scored)."""
+        self.streams = {}
+        for (path, sequence), source in zip(self.bags, self.sources, strict=True):
+            topics, damage = digests_to_damage(path, self.topics, source)
+            record: dict[str, Any] = {"bag": str(path), "topics": topics}
+            if damage is not None:
+                record["read_up_to"] = damage
+            self.streams[sequence] = record
 
     def record(self) -> dict[str, Any]:
         """Sequence → its bag and per-topic digests (computed now if not yet)."""
@@ -63,7 +66,9 @@ def record_bag_provenance(
     """Hash each bag's scored streams (unless ``streams`` did), store the record and return it.
 
     ``inputs.streams`` maps each sequence to its bag and, per topic, the sha256 and the
-    number of its serialized messages (see :func:`dispeval_ros.io.provenance.stream_digests`).
+    number of its serialized messages (see :func:`dispeval_ros.io.provenance.stream_digests`);
+    for a bag damaged on the way (a recording killed mid-write), those of the messages before
+    the damage and, under ``read_up_to``, where reading stopped: what was scored.
     """
     if streams is None:
         streams = BagStreams(bags, config)
