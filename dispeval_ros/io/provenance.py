@@ -70,29 +70,28 @@ def _raw_mcap(path: Path, topics: Sequence[str]) -> Iterator[tuple[str, int, byt
 def _scanned_mcap(path: Path, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:
     """An MCAP without summary, read from its start in file order as the evaluation reads it.
 
-    Up to any damage: then an ``InputError`` saying after how many messages.
+    Up to any damage, then the evaluation's own ``InputError``: the digests stop where it did.
     """
     from mcap.records import Channel, Message
-    from mcap.stream_reader import StreamReader
+
+    from dispeval_ros.io.bags.mcap_reader import damage_text, scan_records
 
     wanted = set(topics)
     channels: dict[int, str] = {}
-    count = 0
+    count, last = 0, -1
     with path.open("rb") as stream:
         try:
-            for record in StreamReader(stream, validate_crcs=True).records:
+            for record in scan_records(stream):
                 if isinstance(record, Channel):
                     channels[record.id] = record.topic
                 elif isinstance(record, Message):
                     count += 1
+                    last = max(last, record.log_time)
                     topic = channels.get(record.channel_id)
                     if topic in wanted:
                         yield topic, int(record.log_time), bytes(record.data)
         except Exception as error:
-            raise InputError(
-                f"{path}: MCAP file is damaged or truncated after {count} messages "
-                f"({str(error) or type(error).__name__})"
-            ) from None
+            raise InputError(damage_text(path, error, count, last)) from None
 
 
 def _raw_messages(path: Path, fmt: str, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes]]:

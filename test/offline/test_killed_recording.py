@@ -68,7 +68,9 @@ def test_a_killed_recording_finishes_and_resumes(killed: tuple[Path, Path], tmp_
         assert "truncated" in problem.message
     streams = json.loads((out / "summary.json").read_text())["provenance"]["inputs"]["streams"]
     record = streams[sequence]
-    assert "damaged or truncated after" in record["read_up_to"]
+    # the digests stopped where the evaluation did, and say it in the same words
+    assert record["read_up_to"] == problem.message.removeprefix("reading stopped: ")
+    assert "MCAP file is truncated (it ends before its footer) after" in record["read_up_to"]
     read = int(record["read_up_to"].split("after ")[1].split(" messages")[0])
     topics = list(record["topics"])
     assert record["topics"] == digests_before(intact, topics, read)

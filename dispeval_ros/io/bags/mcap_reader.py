@@ -67,6 +67,29 @@ class _StrictFile:
         return True
 
 
+def scan_records(stream: BinaryIO) -> Iterator[Any]:
+    """Every record from the start of ``stream``, chunks expanded, in file order.
+
+    Short reads raise (:class:`_StrictFile`), so a record cut off by a killed writer is damage.
+    """
+    from mcap.stream_reader import StreamReader
+
+    strict = _StrictFile(stream)
+    return StreamReader(strict, validate_crcs=True).records  # type: ignore[arg-type]
+
+
+def damage_text(path: Path, exc: BaseException, count: int, last: int) -> str:
+    """Where and how a scanned MCAP file broke: the one wording of the readers and digests."""
+    from mcap.exceptions import EndOfFile
+
+    if isinstance(exc, (EndOfFile, _TruncatedError)):
+        what = "MCAP file is truncated (it ends before its footer)"
+    else:
+        what = f"MCAP file is damaged ({one_line(exc)})"
+    after = f" after {count} messages (last log time {last} ns)" if count else ""
+    return f"{path}: {what}{after}"
+
+
 class McapBackend:
     """A single MCAP file read with ``mcap`` and decoded by ``mcap_ros2``.
 
@@ -130,14 +153,6 @@ class McapBackend:
             return None
         return summary
 
-    @staticmethod
-    def _records(stream: _StrictFile) -> Iterator[Any]:
-        """Every record from the start of ``stream``, chunks expanded, in file order."""
-        from mcap.stream_reader import StreamReader
-
-        stream.seek(0)
-        return StreamReader(stream, validate_crcs=True).records  # type: ignore[arg-type]
-
     def _scan(self) -> dict[int, int]:
         """List schemas, channels and counts by reading the file; note where it is damaged."""
         from mcap.records import Channel, Message, Schema
@@ -147,7 +162,7 @@ class McapBackend:
         counts: dict[int, int] = {}
         first, last, count = MAX_TIME, -1, 0
         previous = -1
-        records = self._records(self._stream)
+        records = scan_records(self._raw)
         try:
             for record in records:
                 if isinstance(record, Message):
@@ -163,23 +178,13 @@ class McapBackend:
                 elif isinstance(record, Channel):
                     self._channels[record.id] = record
         except Exception as exc:
-            self._damage = self._describe_damage(exc, count, last)
+            self._damage = damage_text(self.path, exc, count, last)
             if count == 0 and not self._channels:
                 raise InputError(self._damage) from None
         self.message_count = count
         self.start_ns = first if count else 0
         self.end_ns = last + 1 if count else 0
         return counts
-
-    def _describe_damage(self, exc: BaseException, count: int, last: int) -> str:
-        from mcap.exceptions import EndOfFile
-
-        if isinstance(exc, (EndOfFile, _TruncatedError)):
-            what = "MCAP file is truncated (it ends before its footer)"
-        else:
-            what = f"MCAP file is damaged ({one_line(exc)})"
-        after = f" after {count} messages (last log time {last} ns)" if count else ""
-        return f"{self.path}: {what}{after}"
 
     def _decode(self, schema: Any, channel: Any, data: bytes) -> Any:
         decoder = self._decoders.get(channel.id)
@@ -268,7 +273,7 @@ class McapBackend:
         count, last = 0, -1
         # A file handle of its own, so that several iterations may be interleaved.
         raw = self._file.open("rb")
-        records = self._records(_StrictFile(raw))
+        records = scan_records(raw)
         try:
             for record in records:
                 if isinstance(record, Message):
@@ -295,7 +300,7 @@ class McapBackend:
         except DispevalError:
             raise
         except Exception as exc:
-            damage = self._describe_damage(exc, count, last)
+            damage = damage_text(self.path, exc, count, last)
         finally:
             raw.close()
         if pending:
@@ -314,7 +319,9 @@ class McapBackend:
         chunked = self.chunked
         if chunked is not None:
             with contextlib.suppress(NotChunked):
-                yield from (log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None))
+                yield from (
+                    log_ns for _, log_ns, _ in chunked.messages(list(chunked.topics), None, None)
+                )
                 return
         if self._indexed:
             yield from (message.log_time for _, _, message in self._reader.iter_messages())
@@ -322,7 +329,7 @@ class McapBackend:
         from mcap.records import Message
 
         with self._file.open("rb") as raw, contextlib.suppress(Exception):  # up to the damage
-            for record in self._records(_StrictFile(raw)):
+            for record in scan_records(raw):
                 if isinstance(record, Message):
                     yield record.log_time
 
