@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from dispeval_ros.core.evaluator import as_disparity
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.core.protocols.common import (
     _BAD,
     _BAD_COLUMNS,
@@ -50,7 +51,7 @@ def eth3d_frame(
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
         _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
-        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+        regions["nonocc"] = known & inside_mask("the nonocc mask (mask0nocc.png)", nonocc)
     else:
         result.notes.append("nonocc: no mask0nocc.png")
     regions["all"] = known

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from dispeval_ros.core.evaluator import as_disparity
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.core.protocols.common import (
     _BAD,
     _BAD_COLUMNS,
@@ -101,7 +102,7 @@ def middeval3_frame(
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
         _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
-        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+        regions["nonocc"] = known & inside_mask("the nonocc mask (mask0nocc.png)", nonocc)
     regions["all"] = known
     result = FrameResult(frame, {})
     if nonocc is None:
