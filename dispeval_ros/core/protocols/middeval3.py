@@ -24,6 +24,7 @@ from dispeval_ros.core.protocols.common import (
     FrameData,
     FrameResult,
     Protocol,
+    ResultLayout,
     _error_columns,
     _same_shape,
     _weighted_mean,
@@ -154,6 +155,15 @@ def middeval3_summary(
     return _weighted_mean(frames, [table.get(f.frame, 1.0) for f in frames])
 
 
+#: The SDK's runalg writes ``disp0NAME.pfm`` into each scene folder; a results folder holds
+#: the same per scene, or one PFM per scene.
+MIDDEVAL3_RESULTS = ResultLayout(
+    folder=("{frame}/disp0{method}.pfm", "{frame}.pfm", "{frame}/disp0.pfm"),
+    scene=("disp0{method}.pfm",),
+    encoding="pfm",
+)
+
+
 def _frame(data: FrameData, estimate: np.ndarray, arithmetic: Arithmetic) -> FrameResult:
     return middeval3_frame(data.frame, data.gt, estimate, data.nonocc_mask, data.ndisp, arithmetic)
 
@@ -180,4 +190,5 @@ MIDDEVAL3 = Protocol(
     },
     frame_function=_frame,
     summary_function=double_summary(middeval3_summary),
+    results=MIDDEVAL3_RESULTS,
 )
