@@ -20,6 +20,7 @@ from dispeval_ros.core.gtfree import (
     is_gt_free,
     joined,
 )
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.scene_frames import GT_SOURCES
@@ -483,7 +484,7 @@ def run(args: argparse.Namespace) -> int:
     masks = {}
     for spec in args.mask:
         name, path = _named(spec)
-        masks[name] = read_mask(path) == 255
+        masks[name] = inside_mask(f"{path} (--mask {name})", read_mask(path))
         shared.append(path)
     gt_right = None if args.gt_right is None else read_disparity(args.gt_right, scale=args.gt_scale)
     roi = read_mask(args.roi) if args.roi is not None else None

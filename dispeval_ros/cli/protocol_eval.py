@@ -17,6 +17,15 @@ if TYPE_CHECKING:
     from dispeval_ros.offline.benchmark import BenchmarkRun
 
 
+def _in_tree_results() -> str:
+    """Where ``--est NAME`` alone looks, from the protocols' own result layouts."""
+    paths: dict[str, list[str]] = {}
+    for protocol in PROTOCOLS.values():
+        for path in protocol.results.scene:
+            paths.setdefault(path.format(method="NAME"), []).append(protocol.name)
+    return "; ".join(f"{path} in each {'/'.join(names)} scene folder" for path, names in paths.items())
+
+
 def add_options(parser: argparse.ArgumentParser) -> None:
     """``--protocol`` and the files a single protocol frame may need."""
     group = parser.add_argument_group(
@@ -28,7 +37,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         help="evaluate as the benchmark does: regions, measures, invalid handling and the "
         "official tool's float32 arithmetic; --scene is then a dataset tree (or one scene) and "
         "--est NAME=RESULTS_DIR a method's results laid out as the benchmark expects "
-        "(--est NAME alone: disp0NAME.pfm in each MiddEval3/ETH3D scene folder)",
+        f"(--est NAME alone: {_in_tree_results()}; every layout: README 'Reproduce a benchmark')",
     )
     group.add_argument(
         "--gt-noc", type=Path, help="KITTI: the non-occluded GT (disp_noc) of a --gt frame"

@@ -274,7 +274,7 @@ class Evaluator:
                 f"the '{name}' mask is {crit.size_text(mask.shape)} but the ground truth is "
                 f"{crit.size_text(gt.shape)}"
             )
-        return mask.astype(bool, copy=False)
+        return crit.inside_mask(f"the '{name}' mask", mask)
 
     def _criterion_set(
         self,

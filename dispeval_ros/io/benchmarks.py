@@ -9,10 +9,9 @@
 - KITTI 2012: ``disp_occ/`` with ``disp_noc/`` beside it (same places);
 - any single scene folder :func:`dispeval_ros.io.load_scene` recognises.
 
-:func:`find_estimate` finds a method's result for a frame: ``disp0NAME.pfm`` in the scene
-folder (the MiddEval3 SDK's ``runalg`` output), or in a results folder ``DIR/<scene>.pfm``
-(ETH3D submissions), ``DIR/<scene>/disp0NAME.pfm``, ``DIR/disp_0/NNNNNN_10.png`` (KITTI
-submissions), ``DIR/data/NNNNNN_10.png`` or ``DIR/NNNNNN_10.png``.
+:func:`find_estimate` finds a method's result for a frame where the protocol's
+:class:`~dispeval_ros.core.protocols.ResultLayout` says its tool takes it (``disp0NAME.pfm``
+in a MiddEval3 scene folder, ``DIR/disp_0/NNNNNN_10.png`` for KITTI, ...).
 """
 
 from __future__ import annotations
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from dispeval_ros.core.protocols import FrameData, Protocol
-from dispeval_ros.errors import InputError, LayoutError
+from dispeval_ros.errors import ConfigurationError, InputError, LayoutError
 from dispeval_ros.io.files import read_disparity, read_mask
 from dispeval_ros.io.scenes import load_scene
 
@@ -193,31 +192,51 @@ def discover(protocol: Protocol, root: Path) -> list[BenchmarkFrame]:
         raise LayoutError(f"{root}: not a {protocol.title} tree; expected {expected}") from None
 
 
-def estimate_candidates(frame: BenchmarkFrame, method: str, results: Path | None) -> list[Path]:
-    """Where a method's result for ``frame`` may be, in order of preference."""
-    if results is None:
-        return [frame.folder / f"disp0{method}.pfm"]
-    if results.is_file():
+def estimate_candidates(
+    protocol: Protocol, frame: BenchmarkFrame, method: str, results: Path | None
+) -> list[Path]:
+    """Where ``protocol``'s tool takes a method's result for ``frame`` (its :class:`ResultLayout`)."""
+    if results is not None and results.is_file():
         return [results]
-    stem = frame.gt.stem if not frame.single else frame.name
-    return [
-        results / f"{frame.name}.pfm",
-        results / frame.name / f"disp0{method}.pfm",
-        results / frame.name / "disp0.pfm",
-        results / "disp_0" / f"{stem}.png",
-        results / "data" / f"{stem}.png",
-        results / f"{stem}.png",
+    base = frame.folder if results is None else results
+    return [base / path for path in protocol.results.paths(results is not None, frame.name, method)]
+
+
+def find_estimate(
+    protocol: Protocol, frame: BenchmarkFrame, method: str, results: Path | None
+) -> Path:
+    """The one result file of ``method`` for ``frame``, or a one-line error naming every place.
+
+    Only the protocol's own layouts are looked at, so a file the tool would refuse is never
+    picked; two files that both fit are refused by name rather than one chosen silently.
+    """
+    layout = protocol.results
+    candidates = estimate_candidates(protocol, frame, method, results)
+    if not candidates:
+        raise ConfigurationError(
+            f"--est {method}: {protocol.title} results are not kept in the dataset tree; give "
+            f"--est {method}=RESULTS ({layout.describe().replace('`', '')})"
+        )
+    found = [candidate for candidate in candidates if candidate.is_file()]
+    if len(found) > 1:
+        raise InputError(
+            f"method '{method}', frame {frame.name}: {len(found)} result files fit the "
+            f"{protocol.title} layouts ({', '.join(str(f) for f in found)}); keep one"
+        )
+    if found:
+        return found[0]
+    others = [
+        str(other)
+        for candidate in candidates
+        for other in (candidate.with_suffix(s) for s in (".pfm", ".png", ".npy"))
+        if other != candidate and other.is_file()
     ]
-
-
-def find_estimate(frame: BenchmarkFrame, method: str, results: Path | None) -> Path:
-    """The result file of ``method`` for ``frame``, or a one-line error naming where it looked."""
-    candidates = estimate_candidates(frame, method, results)
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    looked = ", ".join(str(c) for c in candidates[:4]) + (", ..." if len(candidates) > 4 else "")
-    raise InputError(f"no result of method '{method}' for frame {frame.name}: looked for {looked}")
+    beside = f"; found {', '.join(others)}, not read" if others else ""
+    raise InputError(
+        f"no result of method '{method}' for frame {frame.name}: looked for "
+        f"{', '.join(str(c) for c in candidates)} ({protocol.title} results: "
+        f"{layout.encoding_text()}){beside}"
+    )
 
 
 def _ndisp(calib: Path | None) -> float | None:
@@ -265,15 +284,16 @@ def read_estimate(path: Path, protocol: Protocol | None = None) -> np.ndarray:
     MiddEval3 and ETH3D results PFM files (``INF`` = no estimate): the official tools refuse
     anything else, and another encoding would change what counts as missing.
     """
-    if protocol is not None and protocol.name.startswith("kitti"):
-        if _png_format(path) != (16, 0):
-            raise InputError(
-                f"{path}: {protocol.title} results must be 1-channel 16-bit PNG "
-                "(disparity × 256, 0 = no estimate), as the devkit requires"
-            )
-    elif protocol is not None and path.suffix.lower() != ".pfm":
-        raise InputError(
-            f"{path}: {protocol.title} results must be PFM files (INF = no estimate), "
-            "as the official tool reads them"
+    if protocol is not None:
+        layout = protocol.results
+        fits = (
+            _png_format(path) == (16, 0)
+            if layout.encoding == "png16"
+            else path.suffix.lower() == ".pfm"
         )
+        if not fits:
+            raise InputError(
+                f"{path}: {protocol.title} results must be {layout.encoding_text()}, as "
+                f"{protocol.tool} reads them"
+            )
     return read_disparity(path)

@@ -397,7 +397,9 @@ def read_disparity(path: PathLike, scale: float | None = None) -> np.ndarray:
 def read_mask(path: PathLike) -> np.ndarray:
     """Read a mask as a uint8 H×W array with the file's values (e.g. 255 / 128 / 0).
 
-    Palette images are expanded to grey. ``.npy``/``.npz`` boolean masks become 255/0.
+    Palette images are expanded to grey. ``.npy``/``.npz`` boolean masks become 255/0. The
+    values are kept so that the one rule, :func:`dispeval_ros.core.masks.inside_mask` (255
+    inside, 128/0 outside, 0/1 or boolean; anything else refused), applies wherever they go.
     """
     file = Path(path)
     suffix = file.suffix.lower()

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from dispeval_ros.core.camera import Camera
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.errors import CalibrationError, InputError, LayoutError, ShapeMismatchError
 from dispeval_ros.io.calib import read_calib
 from dispeval_ros.io.files import PathLike, read_disparity, read_mask
@@ -101,11 +102,11 @@ def _same_shape(gt: np.ndarray, gt_file: Path, other: np.ndarray, other_file: Pa
         )
 
 
-def _mask(file: Path, gt: np.ndarray, gt_file: Path, value: int | None) -> np.ndarray:
-    """Boolean mask: pixels equal to ``value`` (or > 0 when ``value`` is None)."""
+def _mask(file: Path, gt: np.ndarray, gt_file: Path) -> np.ndarray:
+    """Boolean mask of an official mask image, by the one rule (255 inside, 128/0 outside)."""
     raw = read_mask(file)
     _same_shape(gt, gt_file, raw, file)
-    return raw == value if value is not None else raw > 0
+    return inside_mask(str(file), raw)
 
 
 def _required_calib(folder: Path, *names: str) -> Camera:
@@ -155,7 +156,7 @@ def _load_middlebury2001(folder: Path) -> Scene:
         mask_file = _existing(folder, f"{name}.png")
         if mask_file is not None:
             # 255 = in the mask; disc.png also marks other non-occluded points with 128.
-            masks[name] = _mask(mask_file, gt, gt_file, 255)
+            masks[name] = _mask(mask_file, gt, gt_file)
     return Scene(
         name=folder.name,
         layout="middlebury2001",
@@ -184,7 +185,7 @@ def _load_middlebury2014(folder: Path, layout: str, gt_name: str) -> Scene:
     mask_file = _existing(folder, "mask0nocc.png")
     if mask_file is not None:
         # 255 = non-occluded, 128 = occluded, 0 = no GT.
-        masks["nonocc"] = _mask(mask_file, gt, gt_file, 255)
+        masks["nonocc"] = _mask(mask_file, gt, gt_file)
     return Scene(
         name=folder.name,
         layout=layout,

@@ -109,7 +109,7 @@ def _score_method(
 ) -> list[FrameResult]:
     scored = []
     for frame in frames:
-        path = find_estimate(frame, method, results_dir)
+        path = find_estimate(protocol, frame, method, results_dir)
         hashes.setdefault(str(path), file_sha256(path))
         if frame.gt not in loaded:
             loaded[frame.gt] = load_frame(frame)

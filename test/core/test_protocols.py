@@ -567,7 +567,8 @@ def test_found_estimates_follow_benchmark_layouts(shared_data: Path) -> None:
     frames = discover(get_protocol("kitti2015"), shared_data / VELODYNE)
     assert [f.name for f in frames] == ["000010", "000043", "000112", "000150"]
     assert all(f.obj_map is not None and f.gt_noc is None for f in frames)
-    found = find_estimate(frames[0], "psm", shared_data / VELODYNE / "prediction")
+    kitti2015 = get_protocol("kitti2015")
+    found = find_estimate(kitti2015, frames[0], "psm", shared_data / VELODYNE / "prediction")
     assert found.name == "000010.png"
     assert read_estimate(found).dtype == np.float32
 
@@ -659,4 +660,4 @@ def test_results_must_be_in_the_tools_format(
     assert (
         main(["eval", "--protocol", "middeval3", "--scene", str(scene), "--est", f"m={png}"]) == 2
     )
-    assert "must be PFM files" in capsys.readouterr().err
+    assert "must be PFM (INF = no estimate)" in capsys.readouterr().err

@@ -54,6 +54,7 @@ from dispeval_ros.core.criteria.visibility import (
     sparse_discontinuities,
     visibility_set,
 )
+from dispeval_ros.core.masks import inside_mask
 
 __all__ = [
     "BOUNDARY_MODES",
@@ -77,6 +78,7 @@ __all__ = [
     "build_partition",
     "depth_set",
     "discontinuities",
+    "inside_mask",
     "is_sparse",
     "kmeans_thresholds",
     "legacy_set",

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dispeval_ros.core import kernels
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.errors import ShapeMismatchError
 
 CRITERION_SETS = ("all", "visibility", "depth", "roi", "legacy")
@@ -62,7 +63,7 @@ def valid_ground_truth(gt: np.ndarray, all_mask: np.ndarray | None = None) -> np
         valid = np.isfinite(gt) & (gt > 0)
     if all_mask is not None:
         _check_shape("the 'all' mask", all_mask, gt)
-        valid &= all_mask.astype(bool, copy=False)
+        valid &= inside_mask("the 'all' mask", all_mask)
     return valid
 
 

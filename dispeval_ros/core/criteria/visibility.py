@@ -21,6 +21,7 @@ from dispeval_ros.core.criteria.base import (
     _flat,
     _partitioning,
 )
+from dispeval_ros.core.masks import inside_mask
 
 
 def occlusion(
@@ -40,7 +41,7 @@ def occlusion(
     """
     if nonocc is not None:
         _check_shape("the 'nonocc' mask", nonocc, gt)
-        return valid & ~nonocc.astype(bool, copy=False), "official mask"
+        return valid & ~inside_mask("the 'nonocc' mask", nonocc), "official mask"
     if gt_right is not None:
         _check_shape("the right-view ground truth", gt_right, gt)
         occluded = kernels.left_right_occlusion(
@@ -200,7 +201,7 @@ def _visibility_masks(
     )
     if disc is not None:
         _check_shape("the 'disc' mask", disc, gt)
-        return occluded, disc.astype(bool, copy=False), source + ", official disc mask"
+        return occluded, inside_mask("the 'disc' mask", disc), source + ", official disc mask"
     sparse_boundary = source + ", sparse-GT boundary"
     if options.boundary_mode == "sparse":
         return occluded, sparse_discontinuities(gt, valid, gap, width), sparse_boundary

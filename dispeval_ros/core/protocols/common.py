@@ -176,6 +176,46 @@ def double_summary(combine: Callable[[Sequence[FrameResult]], SummaryTable]) -> 
     return lambda frames, arithmetic: combine(frames)
 
 
+#: The result encodings the official tools read, and how each marks "no estimate".
+RESULT_ENCODINGS = {
+    "png16": "1-channel 16-bit PNG (disparity × 256, 0 = no estimate)",
+    "pfm": "PFM (INF = no estimate)",
+}
+
+
+@dataclass(frozen=True)
+class ResultLayout:
+    """Where a benchmark's tool finds a method's result for a frame, and in which encoding.
+
+    The one definition read by the lookup, its error message and the README. ``folder``: paths
+    under a results folder (``--est NAME=RESULTS``); ``scene``: paths in the frame's own folder
+    (``--est NAME``; empty where the results never live in the dataset tree). ``{frame}`` is
+    the frame's name (its scene folder, or KITTI's ``NNNNNN_10``), ``{method}`` the method's.
+    """
+
+    folder: tuple[str, ...]
+    scene: tuple[str, ...]
+    encoding: str
+
+    def paths(self, in_folder: bool, frame: str, method: str) -> list[str]:
+        """The relative paths of ``frame``'s result, in the listed order."""
+        templates = self.folder if in_folder else self.scene
+        return [t.format(frame=frame, method=method) for t in templates]
+
+    def encoding_text(self) -> str:
+        """The encoding as the official tool wants it (for refusals and the README)."""
+        return RESULT_ENCODINGS[self.encoding]
+
+    def describe(self) -> str:
+        """Every accepted layout and the encoding in one line (README 'Reproduce a benchmark')."""
+        folder = ", ".join(f"`RESULTS/{p}`" for p in self.paths(True, "<frame>", "NAME"))
+        scene = ", ".join(f"`<frame>/{p}`" for p in self.paths(False, "<frame>", "NAME"))
+        where = f"`--est NAME=RESULTS`: {folder}"
+        if scene:
+            where = f"`--est NAME`: {scene} in the dataset tree; {where}"
+        return f"{where}; {self.encoding_text()}"
+
+
 @dataclass(frozen=True)
 class Protocol:
     """One benchmark's evaluation preset.
@@ -184,7 +224,9 @@ class Protocol:
     lists the columns shown as percentages; ``objectives`` are the lower-is-better columns the
     A* Groups compare; ``summary`` says how frames are combined; ``float32`` where the official
     tool's float32 arithmetic is reproduced. ``frame_function`` and ``summary_function`` are
-    the benchmark's own arithmetic, so callers dispatch through the preset, never on its name.
+    the benchmark's own arithmetic, so callers dispatch through the preset, never on its name;
+    ``results`` where its tool finds a method's results (not in :meth:`record`: it moves no
+    number).
     """
 
     name: str
@@ -198,6 +240,7 @@ class Protocol:
     float32: str
     frame_function: FrameFunction = field(repr=False, compare=False)
     summary_function: SummaryFunction = field(repr=False, compare=False)
+    results: ResultLayout = field(repr=False, compare=False)
     settings: Mapping[str, object] = field(default_factory=dict)
 
     def record(self) -> dict[str, object]:

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from dispeval_ros.core.evaluator import as_disparity
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.core.protocols.common import (
     _BAD,
     _BAD_COLUMNS,
@@ -21,6 +22,7 @@ from dispeval_ros.core.protocols.common import (
     FrameData,
     FrameResult,
     Protocol,
+    ResultLayout,
     _error_columns,
     _same_shape,
     _weighted_mean,
@@ -50,7 +52,7 @@ def eth3d_frame(
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
         _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
-        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+        regions["nonocc"] = known & inside_mask("the nonocc mask (mask0nocc.png)", nonocc)
     else:
         result.notes.append("nonocc: no mask0nocc.png")
     regions["all"] = known
@@ -91,6 +93,15 @@ def eth3d_summary(frames: Sequence[FrameResult]) -> dict[str, dict[str, float]]:
     return _weighted_mean(frames, [1.0] * len(frames))
 
 
+#: An ETH3D submission holds ``<scene>.pfm`` per scene. Never ``<scene>/disp0.pfm``: that is
+#: the GT's name in the two-view trees :func:`dispeval_ros.io.benchmarks.discover` accepts.
+ETH3D_RESULTS = ResultLayout(
+    folder=("{frame}.pfm", "{frame}/disp0{method}.pfm"),
+    scene=("disp0{method}.pfm",),
+    encoding="pfm",
+)
+
+
 def _frame(data: FrameData, estimate: np.ndarray, arithmetic: Arithmetic) -> FrameResult:
     return eth3d_frame(data.frame, data.gt, estimate, data.nonocc_mask, arithmetic)
 
@@ -114,4 +125,5 @@ ETH3D = Protocol(
     },
     frame_function=_frame,
     summary_function=double_summary(eth3d_summary),
+    results=ETH3D_RESULTS,
 )

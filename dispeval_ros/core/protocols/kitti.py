@@ -14,9 +14,14 @@ import numpy as np
 
 from dispeval_ros.core import kernels
 from dispeval_ros.core.evaluator import as_disparity
-from dispeval_ros.core.protocols.common import F32, FrameResult, _same_shape
+from dispeval_ros.core.protocols.common import F32, FrameResult, ResultLayout, _same_shape
 
 _KITTI_INTERPOLATION = "devkit interpolateBackground (rows without estimate stay -1)"
+#: A KITTI submission's ``disp_0/`` (or the devkit's ``data/``), or the PNGs themselves; never
+#: in the GT tree, and only the 16-bit PNGs the devkits read.
+KITTI_RESULTS = ResultLayout(
+    folder=("disp_0/{frame}.png", "data/{frame}.png", "{frame}.png"), scene=(), encoding="png16"
+)
 
 
 def _kitti_columns(main: tuple[str, ...]) -> tuple[str, ...]:

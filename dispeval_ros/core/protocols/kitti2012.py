@@ -17,7 +17,12 @@ from dispeval_ros.core.protocols.common import (
     FrameResult,
     Protocol,
 )
-from dispeval_ros.core.protocols.kitti import _KITTI_INTERPOLATION, _kitti_columns, _KittiFrame
+from dispeval_ros.core.protocols.kitti import (
+    _KITTI_INTERPOLATION,
+    KITTI_RESULTS,
+    _kitti_columns,
+    _KittiFrame,
+)
 
 _OUT = tuple(f"Out-{k}" for k in (2, 3, 4, 5))
 
@@ -99,4 +104,5 @@ KITTI2012 = Protocol(
     settings={"thresholds": [2, 3, 4, 5], "interpolation": _KITTI_INTERPOLATION},
     frame_function=_frame,
     summary_function=kitti2012_summary,
+    results=KITTI_RESULTS,
 )

@@ -20,7 +20,12 @@ from dispeval_ros.core.protocols.common import (
     Protocol,
     _same_shape,
 )
-from dispeval_ros.core.protocols.kitti import _KITTI_INTERPOLATION, _kitti_columns, _KittiFrame
+from dispeval_ros.core.protocols.kitti import (
+    _KITTI_INTERPOLATION,
+    KITTI_RESULTS,
+    _kitti_columns,
+    _KittiFrame,
+)
 
 _D1 = ("D1-bg", "D1-fg", "D1-all")
 
@@ -135,4 +140,5 @@ KITTI2015 = Protocol(
     },
     frame_function=_frame,
     summary_function=kitti2015_summary,
+    results=KITTI_RESULTS,
 )

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from dispeval_ros.core.evaluator import as_disparity
+from dispeval_ros.core.masks import inside_mask
 from dispeval_ros.core.protocols.common import (
     _BAD,
     _BAD_COLUMNS,
@@ -23,6 +24,7 @@ from dispeval_ros.core.protocols.common import (
     FrameData,
     FrameResult,
     Protocol,
+    ResultLayout,
     _error_columns,
     _same_shape,
     _weighted_mean,
@@ -101,7 +103,7 @@ def middeval3_frame(
     regions: dict[str, np.ndarray] = {}
     if nonocc is not None:
         _same_shape(gt, np.asarray(nonocc), "the nonocc mask (mask0nocc.png)")
-        regions["nonocc"] = known & (np.asarray(nonocc) == 255)
+        regions["nonocc"] = known & inside_mask("the nonocc mask (mask0nocc.png)", nonocc)
     regions["all"] = known
     result = FrameResult(frame, {})
     if nonocc is None:
@@ -153,6 +155,15 @@ def middeval3_summary(
     return _weighted_mean(frames, [table.get(f.frame, 1.0) for f in frames])
 
 
+#: The SDK's runalg writes ``disp0NAME.pfm`` into each scene folder; a results folder holds
+#: the same per scene, or one PFM per scene.
+MIDDEVAL3_RESULTS = ResultLayout(
+    folder=("{frame}/disp0{method}.pfm", "{frame}.pfm", "{frame}/disp0.pfm"),
+    scene=("disp0{method}.pfm",),
+    encoding="pfm",
+)
+
+
 def _frame(data: FrameData, estimate: np.ndarray, arithmetic: Arithmetic) -> FrameResult:
     return middeval3_frame(data.frame, data.gt, estimate, data.nonocc_mask, data.ndisp, arithmetic)
 
@@ -179,4 +190,5 @@ MIDDEVAL3 = Protocol(
     },
     frame_function=_frame,
     summary_function=double_summary(middeval3_summary),
+    results=MIDDEVAL3_RESULTS,
 )
