@@ -4,10 +4,10 @@ The LiDAR has ``beams`` lasers spread evenly over a vertical field ``±vertical_
 fires every ``azimuth_step`` degrees over a full turn, and sits ``offset`` metres from the left
 camera (right, up, forward in world axes): by default above and behind it, as on a car roof,
 so that it sees background the camera does not (parallax occlusions). Every ray is intersected
-exactly with the ground, the far wall and every box; rays that hit nothing or come back from
-beyond ``max_range`` give no point. The whole scan is taken at one instant (no motion
-distortion), so the only differences from the camera's exact GT are the LiDAR's viewpoint and
-sampling.
+exactly with the ground, the far wall and every box; rays that hit nothing, a backdrop (the
+sky stand-in ``World.far_wall_backdrop``) or come back from beyond ``max_range`` give no point.
+The whole scan is taken at one instant (no motion distortion), so the only differences from
+the camera's exact GT are the LiDAR's viewpoint and sampling.
 
 Points are in the LiDAR's frame (REP 103: ``x`` forward, ``y`` left, ``z`` up);
 :func:`lidar_to_camera` gives the transform into the left camera's optical frame (``x`` right,
@@ -62,7 +62,7 @@ class LidarModel:
 
 
 def _hit_distance(world: World, origin: Vec3, directions: np.ndarray) -> np.ndarray:
-    """Distance along each unit ray to the nearest surface (``inf``: nothing)."""
+    """Distance along each unit ray to the nearest surface (``inf``: nothing, or a backdrop)."""
     ox, oy, oz = origin
     dx, dy, dz = directions[:, 0], directions[:, 1], directions[:, 2]
     best = np.full(directions.shape[0], np.inf)
@@ -70,8 +70,9 @@ def _hit_distance(world: World, origin: Vec3, directions: np.ndarray) -> np.ndar
         if oy > 0:
             ground = -oy / dy
             best = np.where((dy < 0) & (ground > 0), ground, best)
-        if world.far_wall_z is not None and world.far_wall_z > oz:
-            wall = (world.far_wall_z - oz) / dz
+        wall_z = None if world.far_wall_backdrop else world.far_wall_z
+        if wall_z is not None and wall_z > oz:
+            wall = (wall_z - oz) / dz
             best = np.where((dz > 0) & (wall < best), wall, best)
         for box in world.boxes:
             t_near = np.full(directions.shape[0], -np.inf)

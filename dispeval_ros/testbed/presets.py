@@ -97,7 +97,9 @@ CAMERA_HEIGHT = 1.65
 NEAREST = 4.0  # metres: nothing in front comes closer (97 px disparity at KITTI size)
 _BLOCK = 50.0  # metres of roadside generated from one seed block
 _AHEAD = 300.0  # roadside generated this far ahead of the camera
-_FAR_WALL = 450.0  # the background, kept this far ahead of the camera (like the sky: fixed)
+# The background, kept this far ahead of the camera (like the sky: fixed), a backdrop: the
+# images show it, its GT is unknown (a 0.43 px GT there made far points dominate SZE).
+_FAR_WALL = 450.0
 
 # Road across x (metres from the rig's centre): same-direction lanes at 0 and +3.5, a median,
 # an oncoming lane at -6.5, sidewalks beyond the kerbs.
@@ -143,6 +145,7 @@ def driving_setup(
         far_wall_z=_FAR_WALL,
         far_wall_albedo=0.7,
         far_wall_texture_scale=60.0,
+        far_wall_backdrop=True,
         seed=seed,
     )
     return world, rig
@@ -261,7 +264,8 @@ def make_driving_sequence(
     The camera (``f = 721.5·width/1242``, height 1.65 m, ``baseline``) drives at 8–12 m/s;
     frame ``i`` has ``stamp = i / fps``. Frames are rendered lazily and depend only on
     ``seed``, ``i / fps`` and the image size, not on ``n_frames``. The nearest surface is
-    ``NEAREST`` metres away: at most ``0.078·width`` px disparity (97 px at 1242 wide).
+    ``NEAREST`` metres away: at most ``0.078·width`` px disparity (97 px at 1242 wide). The
+    textured backdrop above the horizon has no GT (``inf``), as the sky of a real drive.
     """
     world, rig = driving_setup(width, height, fps, seed, baseline)
     for i in range(n_frames):

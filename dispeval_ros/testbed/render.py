@@ -5,7 +5,8 @@ coordinates) is intersected exactly with every primitive, so the depth ``Z`` and
 ``f·B/Z`` are exact for both views: where a surface point is visible in both,
 ``D_L(x, y) == D_R(x − D_L, y)``. Appearance is a function of the world point alone (textures
 are procedural in world coordinates, shading is Lambertian), so the two images agree up to the
-seeded sensor noise. Rays that see nothing (sky) have depth and disparity ``inf``.
+seeded sensor noise. Rays that see nothing (sky) or a backdrop (``World.far_wall_backdrop``)
+have depth and disparity ``inf``.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ _SKY = 0.82
 class View:
     """One rendered camera view: exact depth, what each pixel sees, noiseless radiance.
 
-    ``depth`` is ``Z`` in metres (float64, ``inf`` for sky), ``surface`` the surface code
+    ``depth`` is ``Z`` in metres (float64, ``inf`` for sky and a backdrop), ``surface`` the
+    surface code
     (``NOTHING``, ``GROUND``, ``FAR_WALL`` or ``FIRST_BOX + i``), ``face`` the face code of the
     outward normal, ``radiance`` the grey level in 0..1 before noise and quantisation.
     """
@@ -296,10 +298,13 @@ def _shade(world: World, origin: Vec3, rig: StereoRig, hits: tuple[np.ndarray, .
 def render_view(world: World, origin: Vec3, rig: StereoRig) -> View:
     """Ray-cast one camera of ``rig`` placed at ``origin`` (its intrinsics, any position).
 
-    A box that contains the camera is not seen (rays leave it through its inside faces).
+    A box that contains the camera is not seen (rays leave it through its inside faces). A
+    backdrop is shaded at its distance, then its depth is unknown (``inf``), as sky's is.
     """
     depth, surface, face = _cast(world, origin, rig)
     radiance = _shade(world, origin, rig, (depth, surface, face))
+    if world.far_wall_backdrop:
+        depth = np.where(surface == FAR_WALL, np.inf, depth)
     return View(depth=depth, surface=surface, face=face, radiance=radiance)
 
 

@@ -74,7 +74,11 @@ class World:
 
     ``ground_bands`` are ``(x_lo, x_hi, albedo)`` strips of the ground with another albedo
     (sidewalks, a median); ``far_wall_z`` places a textured wall ``z = far_wall_z`` facing the
-    cameras (``None``: no wall, rays above the horizon see sky). ``seed`` chooses the textures.
+    cameras (``None``: no wall, rays above the horizon see sky). ``far_wall_backdrop`` makes the
+    wall a painted backdrop standing in for sky and horizon: the images show its texture (so
+    matchers behave as before a real far scene), but it has no ground truth (depth and
+    disparity ``inf``, as KITTI leaves its sky without GT) and a LiDAR gets no return from it.
+    ``seed`` chooses the textures.
     """
 
     boxes: tuple[Box, ...] = ()
@@ -87,6 +91,7 @@ class World:
     far_wall_albedo: float = 0.6
     far_wall_contrast: float = 0.3
     far_wall_texture_scale: float = 20.0
+    far_wall_backdrop: bool = False
     seed: int = 0
 
     def at(self, time: float) -> World:

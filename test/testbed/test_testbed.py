@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -21,12 +22,15 @@ from dispeval_ros.testbed import (
     World,
     default_methods,
     default_num_disparities,
+    driving_setup,
+    driving_world_at,
     make_driving_sequence,
     make_scene,
     render_pair,
     render_stereo,
     scene_setup,
 )
+from dispeval_ros.testbed.lidar import LidarModel, simulate_scan
 from dispeval_ros.testbed.scene import FACE_NEG_X, FACE_NEG_Y, FACE_POS_X, NEAREST
 
 
@@ -186,6 +190,46 @@ def test_world_without_far_wall_has_sky_with_infinite_gt() -> None:
     assert (frame.gt_left[~sky] > 0).all()
 
 
+def test_backdrop_is_seen_in_the_images_but_has_no_gt() -> None:
+    rig = StereoRig(width=64, height=48, f=60.0, cx=31.5, cy=23.5, baseline=0.1)
+    wall = World(boxes=(Box((-1.0, 0.0, 5.0), (1.0, 1.0, 6.0), texture_id=3),), far_wall_z=80.0)
+    backdrop = replace(wall, far_wall_backdrop=True)
+    frame, painted = render_stereo(wall, rig), render_stereo(backdrop, rig)
+    # The same images (matchers see the same texture), the same GT off the backdrop.
+    assert np.array_equal(frame.left, painted.left)
+    assert np.array_equal(frame.right, painted.right)
+    for view, real, gt in zip(
+        render_pair(backdrop, rig),
+        (frame.gt_left, frame.gt_right),
+        (painted.gt_left, painted.gt_right),
+        strict=True,
+    ):
+        seen = view.surface == FAR_WALL
+        assert seen[0].all()
+        assert np.isinf(view.depth[seen]).all()
+        assert np.isinf(gt[seen]).all()
+        np.testing.assert_allclose(real[seen], rig.camera.fb / 80.0, rtol=1e-6)
+        assert np.array_equal(gt[~seen], real[~seen])
+        assert np.isfinite(gt[~seen]).all()
+
+
+def test_driving_backdrop_has_no_gt_and_no_lidar_return(drive: list[StereoFrame]) -> None:
+    world, rig = driving_setup(seed=3)
+    world_t, rig_t = driving_world_at(world, rig, 0.0)
+    assert world_t.far_wall_backdrop
+    left, _ = render_pair(world_t, rig_t)
+    backdrop = left.surface == FAR_WALL
+    assert backdrop.mean() > 0.05  # the sky's share of a KITTI frame
+    assert np.isinf(drive[0].gt_left[backdrop]).all()
+    assert np.isfinite(drive[0].gt_left[~backdrop]).all()
+    assert drive[0].left[backdrop].std() > 5  # still textured for the matchers
+    # Even a LiDAR that reaches beyond the backdrop gets no return from it.
+    far = LidarModel(max_range=10_000.0)
+    assert np.linalg.norm(simulate_scan(world_t, rig_t, far), axis=1).max() < 400.0
+    wall = simulate_scan(replace(world_t, far_wall_backdrop=False), rig_t, far)
+    assert np.linalg.norm(wall, axis=1).max() > 400.0
+
+
 def test_box_above_the_camera_is_seen_through_its_underside() -> None:
     rig = StereoRig(width=64, height=48, f=60.0, cx=31.5, cy=23.5, baseline=0.1)
     bridge = Box((-20.0, 3.0, -5.0), (20.0, 4.0, 10.0))  # spans over the camera at 1.2 m
@@ -308,11 +352,13 @@ def test_driving_frames_differ_and_stay_in_range(drive: list[StereoFrame]) -> No
     limit = default_num_disparities(620)
     for frame in drive:
         for gt in (frame.gt_left, frame.gt_right):
-            assert np.isfinite(gt).all()
-            assert gt.min() > 0
-            assert gt.max() < limit
-            assert gt.max() <= frame.camera.fb / NEAREST + 1e-3
-        assert frame.gt_left.max() > 0.8 * frame.camera.fb / NEAREST  # something near
+            known = gt[np.isfinite(gt)]  # all but the backdrop (inf: no GT, as the sky)
+            assert 0.5 * gt.size < known.size < gt.size
+            assert known.min() > 0
+            assert known.max() < limit
+            assert known.max() <= frame.camera.fb / NEAREST + 1e-3
+        near = frame.gt_left[np.isfinite(frame.gt_left)].max()
+        assert near > 0.8 * frame.camera.fb / NEAREST  # something near
     for a, b in itertools.pairwise(drive):
         assert (a.left != b.left).mean() > 0.5
         assert (a.gt_left != b.gt_left).mean() > 0.05  # the road itself looks the same
@@ -330,8 +376,8 @@ def test_driving_sequence_methods_cover_the_range(drive: list[StereoFrame]) -> N
     frame = drive[0]
     method = default_methods(620)[2]
     estimate = method.compute(frame.left, frame.right)
-    valid = estimate >= 0
-    assert valid.mean() > 0.6
+    valid = (estimate >= 0) & np.isfinite(frame.gt_left)
+    assert valid.mean() > 0.55
     assert np.abs(estimate[valid] - frame.gt_left[valid]).mean() < 3.0
     # At KITTI size the nearest surface reaches ~100 px, still below numDisparities = 128.
     f_kitti = 721.5377
