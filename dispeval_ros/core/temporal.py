@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -263,6 +264,7 @@ class TemporalScorer:
         self.measures = parse_pair_measures(self.preset.measures if measures is None else measures)
         bad = [f"bad_{t:g}" for t in map(pair_bad_threshold, self.measures) if t is not None]
         self.thresholds = thresholds_for(bad, evaluator.delta)
+        self._local = threading.local()
 
     def pair(self, reference: Reference, gt_next: np.ndarray | Reference) -> PairReference:
         """Frame t's reference with frame t+1's ground truth (a map, or its own reference).
@@ -306,9 +308,7 @@ class TemporalScorer:
             next_range = est_range
         if next_offset is None:
             next_offset = est_offset
-        order = reference.partition.order
-        values = np.empty(order.shape, dtype=np.float32)
-        values_next = np.empty(order.shape, dtype=np.float32)
+        values, values_next = self._buffers(reference.partition.order.shape)
         gather = self.evaluator.gather
         shift = gather(reference, estimates[0], values, est_range, est_offset)
         shift_next = gather(reference, estimates[1], values_next, next_range, next_offset)
@@ -335,6 +335,17 @@ class TemporalScorer:
             policy=self.evaluator.missing,
             preset=self.preset,
         )
+
+    def _buffers(self, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Per-thread scratch arrays for both gathered estimates, reallocated on a new size.
+
+        Fresh megabyte arrays cost page faults on every call (more than the kernel's pass).
+        """
+        buffers = getattr(self._local, "values", None)
+        if buffers is None or buffers[0].shape != shape:
+            buffers = (np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32))
+            self._local.values = buffers
+        return buffers
 
 
 def _same_size(array: np.ndarray, reference: Reference, what: str) -> np.ndarray:

@@ -79,16 +79,19 @@ def gather_next_ground_truth(
     """``D_t+1`` at frame t's evaluated pixels (partition order); 0 where it has no valid GT.
 
     Valid: finite and > 0 (NaN fails both tests), and, when ``next_cells`` is not empty (the
-    next frame's partition), evaluated there too (an official ``all`` mask of frame t+1).
+    next frame's partition), evaluated there too (an official ``all`` mask of frame t+1). A
+    plain gather, then contiguous passes: both vectorise.
     """
-    masked = next_cells.shape[0] > 0
     for k in range(order.shape[0]):
-        index = order[k]
-        value = gt_next[index]
-        valid = (value > 0) & (value < np.inf)
-        if masked:
-            valid &= next_cells[index] >= 0
-        out[k] = value if valid else np.float32(0.0)
+        out[k] = gt_next[order[k]]
+    zero = np.float32(0.0)
+    for k in range(order.shape[0]):
+        value = out[k]
+        out[k] = value if (value > 0) & (value < np.inf) else zero
+    if next_cells.shape[0] == 0:
+        return
+    for k in range(order.shape[0]):
+        out[k] = out[k] if next_cells[order[k]] >= 0 else zero
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
