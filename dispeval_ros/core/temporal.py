@@ -84,7 +84,7 @@ PRESETS: dict[str, Preset] = {
         "dynamicstereo", "n_pair_nonzero",
         ("tepe", "tepe_bad_0.5", "tepe_bad_1", "tepe_bad_2", "tepe_bad_3"), True,
         "DynamicStereo's evaluation: means over the scored pixel pairs whose temporal error is "
-        "not exactly 0, per sequence; sequences averaged weighted by their frames",
+        "not exactly 0, per clip; clips averaged weighted by their frames",
     ),
 }  # fmt: skip
 DEFAULT_PRESET = "dispeval"
@@ -201,11 +201,11 @@ class PairScores(Mapping[str, Mapping[str, float]]):
 
 
 def frame_weighted_mean(sequences: Sequence[PairScores]) -> dict[str, dict[str, float]]:
-    """Per-sequence values averaged over sequences, each weighted by its frames (pairs + 1).
+    """Per-clip values averaged over clips, each weighted by its frames (pairs + 1).
 
-    DynamicStereo's aggregate over a data set: each sequence (its pairs combined) is one
-    value, weighted by its length. Not summable; with the ``dispeval`` preset, pool the
-    sequences with :meth:`PairScores.combine` instead.
+    DynamicStereo's aggregate over a data set: each clip of consecutive frames (its pairs
+    combined) is one value, weighted by its length. Not summable; with the ``dispeval`` preset,
+    pool the sequences with :meth:`PairScores.combine` instead.
     """
     if not sequences:
         raise ConfigurationError("no sequence to average")
