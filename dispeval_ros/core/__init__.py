@@ -63,6 +63,11 @@ __getattr__, __dir__ = lazy_exports(
             "get_protocol",
             "summarize_frames",
         ),
+        "dispeval_ros.core.temporal": (
+            "PairReference",
+            "PairScores",
+            "TemporalScorer",
+        ),
         "dispeval_ros.core.transforms": (
             "StaticTransform",
             "TransformTree",
@@ -110,6 +115,7 @@ if TYPE_CHECKING:
         get_protocol,
         summarize_frames,
     )
+    from dispeval_ros.core.temporal import PairReference, PairScores, TemporalScorer
     from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
@@ -129,12 +135,15 @@ __all__ = [
     "GroundTruthFree",
     "ImagePair",
     "ModelResult",
+    "PairReference",
+    "PairScores",
     "Partition",
     "Protocol",
     "Reduction",
     "Reference",
     "Scores",
     "StaticTransform",
+    "TemporalScorer",
     "TransformTree",
     "VisibilityOptions",
     "astar_groups",

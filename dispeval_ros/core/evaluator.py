@@ -380,11 +380,8 @@ class Evaluator:
                 f"{crit.size_text(reference.shape)}"
             )
         partition = reference.partition
-        lo, hi, base, shift = estimate_coding(est_range, est_offset)
         values = self._buffer("values", partition.order.shape, np.float32)
-        coded = self.missing == "interpolate"
-        source = self.normalise(estimate, est_range, est_offset) if coded else estimate
-        kernels.gather_estimate(source.ravel(), partition.order, lo, hi, base, shift, coded, values)
+        shift = self.gather(reference, estimate, values, est_range, est_offset)
         cell_sums = np.zeros((partition.offsets.shape[0] - 1, FIELDS), dtype=np.float64)
         kernels.accumulate_cells(
             values,
@@ -411,6 +408,28 @@ class Evaluator:
             overlapping=partition.overlapping,
             policy=self.missing,
         )
+
+    def gather(
+        self,
+        reference: Reference,
+        estimate: np.ndarray,
+        out: np.ndarray,
+        est_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
+    ) -> float:
+        """Write the estimate at the reference's evaluated pixels (partition order) to ``out``.
+
+        Validity is in the sign and the missing policy applied, as :meth:`score` scores it
+        (pair measures gather both frames' estimates the same way); the value scored is
+        ``|out| + shift``, the returned ``shift`` (:func:`estimate_coding`). ``estimate`` is
+        a float32 map of the reference's shape (:func:`as_disparity`).
+        """
+        lo, hi, base, shift = estimate_coding(est_range, est_offset)
+        coded = self.missing == "interpolate"
+        source = self.normalise(estimate, est_range, est_offset) if coded else estimate
+        order = reference.partition.order
+        kernels.gather_estimate(source.ravel(), order, lo, hi, base, shift, coded, out)
+        return shift
 
     def normalise(
         self,

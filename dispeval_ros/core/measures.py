@@ -155,14 +155,19 @@ def _mean(field: int, scale: float = 1.0) -> Callable[[_Sums], float]:
     return lambda sums: _ratio(sums[field], sums[k.FIELD_EVAL], scale)
 
 
-def _from_registry(measure: registry.Measure) -> Callable[[_Sums], float]:
-    """The derivation the registry declares for ``measure`` (a fixed-field one)."""
+def from_registry(
+    measure: registry.Measure, index: Callable[[str], int] = registry.field_index
+) -> Callable[[_Sums], float]:
+    """The derivation the registry declares for ``measure`` (a fixed-field one).
+
+    ``index`` places its fields in a row of sums (the pair measures have their own columns).
+    """
     assert measure.num is not None
-    num = registry.field_index(measure.num)
+    num = index(measure.num)
     if measure.kind == registry.TOTAL:
         return lambda sums: float(sums[num])
     assert measure.den is not None
-    den = registry.field_index(measure.den)
+    den = index(measure.den)
     scale = measure.scale
     if measure.kind == registry.SQRT_RATIO:
         return lambda sums: scale * math.sqrt(_ratio(sums[num], sums[den]))
@@ -170,7 +175,7 @@ def _from_registry(measure: registry.Measure) -> Callable[[_Sums], float]:
 
 
 _FROM_SUMS: dict[str, Callable[[_Sums], float]] = {
-    m.name: _from_registry(m)
+    m.name: from_registry(m)
     for m in registry.MEASURES
     if m.kind != registry.STORED and m.name not in registry.FAMILIES
 }

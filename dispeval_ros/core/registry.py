@@ -153,3 +153,54 @@ def names(**where: object) -> tuple[str, ...]:
 def listing(separator: str = " ") -> str:
     """The measures for a help text, in registry order."""
     return separator.join(MEASURE_NAMES)
+
+
+# -- Pair measures: consecutive frames t, t+1 of one ground-truth sequence ---------------------
+# A section of its own, not entries of MEASURES: every frame front end lists, parses and scores
+# MEASURES (help texts, score vectors, report recipes, objectives), so nothing prints or scores
+# these until a front end scores frame pairs through ``core.temporal``.
+
+NEEDS_GT_PAIR = "gt_pair"
+"""Needs the ground truth of two consecutive frames (and both frames' estimates)."""
+
+TEPE_R_EPSILON = 1e-3
+"""px added to ``|D_t − D_t+1|`` in ``tepe_r``'s denominator (the published code's 1e-3)."""
+
+PAIR_SUM_FIELDS: tuple[str, ...] = (
+    "n_pair",
+    "n_pair_eval",
+    "n_pair_nonzero",
+    "sum_te",
+    "sum_te_rel",
+    *(f"te_bad_count_{i}" for i in range(MAX_THRESHOLDS)),
+)
+"""The pair accumulator's columns: pixels with GT in both frames, those scored (weight 1 unless
+``ignore`` drops a missing estimate), those scored with a non-zero temporal error, Σ e,
+Σ e / (|ΔD| + ε), then the bad counts at δ and the bad-x thresholds (as ``bad_count_*``)."""
+
+
+def pair_field_index(name: str) -> int:
+    """The column of pair accumulator field ``name``."""
+    return PAIR_SUM_FIELDS.index(name)
+
+
+_PAIR_EVAL = "n_pair_eval"
+
+PAIR_MEASURES: tuple[Measure, ...] = (
+    Measure("tepe", "px", NEEDS_GT_PAIR, RATIO, "sum_te", _PAIR_EVAL, 1.0,
+            "temporal end-point error: mean |(E_t − E_t+1) − (D_t − D_t+1)| at the same pixel "
+            "(no warping), over the pixels with ground truth in both frames", family="temporal"),
+    Measure("tepe_r", "e/|ΔD|", NEEDS_GT_PAIR, RATIO, "sum_te_rel", _PAIR_EVAL, 1.0,
+            f"relative TEPE: mean temporal error over |D_t − D_t+1| + {TEPE_R_EPSILON:g} px",
+            family="temporal"),
+    Measure("tepe_bmp", "%", NEEDS_GT_PAIR, RATIO, "te_bad_count_0", _PAIR_EVAL, 100.0,
+            "share of scored pixel pairs with a temporal error above δ", family="temporal"),
+    Measure("tepe_bad_X", "%", NEEDS_GT_PAIR, RATIO, None, _PAIR_EVAL, 100.0,
+            "share of scored pixel pairs with a temporal error above X px (any threshold X)",
+            family="temporal"),
+)  # fmt: skip
+"""Measures of a pair of consecutive frames, summable per criterion like the frame measures."""
+
+PAIR_BY_NAME: dict[str, Measure] = {m.name: m for m in PAIR_MEASURES}
+PAIR_FAMILIES = ("tepe_bad_X",)
+PAIR_MEASURE_NAMES = tuple(m.name for m in PAIR_MEASURES)

@@ -2,8 +2,9 @@
 
 Everything here is numba-compiled (cached on disk, set up once in ``_jit``) and works on plain
 arrays, one module per family: ``estimates`` (coding, missing-estimate policy), ``sums``
-(accumulation), ``partition``, ``labels`` (occlusion, visibility, jumps), ``clustering``
-(k-means classes); ``layout`` is the accumulator's column layout. The scoring
+(accumulation), ``temporal`` (the pair measures' accumulation), ``partition``, ``labels``
+(occlusion, visibility, jumps), ``clustering`` (k-means classes); ``layout`` is the
+accumulator's column layout. The scoring
 path is two passes per method: :func:`normalise_estimate` (validity + the missing-estimate
 policy, row by row) and :func:`accumulate_cells` (one fused pass over the valid-GT pixels in
 partition order, summing every measure's terms per cell). GT-side terms are prepared once
