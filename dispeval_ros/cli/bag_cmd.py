@@ -12,7 +12,6 @@ from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.jsonio import write_json
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -136,8 +135,7 @@ def run_command(args: argparse.Namespace) -> int:
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import bag_location, evaluate_bags
     from dispeval_ros.offline.executors import ready_executor
-    from dispeval_ros.offline.records import BagStreams, record_bag_provenance
-    from dispeval_ros.summary import summarize
+    from dispeval_ros.offline.records import BagStreams, record_bag_provenance, write_run_files
 
     preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")
@@ -165,14 +163,14 @@ def run_command(args: argparse.Namespace) -> int:
             alongside=digests.compute,
             warn=lambda text: print(f"dispeval bag: warning: {text}", file=sys.stderr),
         )
-        rows = store.export_csv(args.out / "frames.csv")
-        summary = summarize(store, args.objective_measures, args.objectives)
-        problems = store.problems()
         provenance = record_bag_provenance(store, args.bags, record, config, digests)
-    document = {**summary.to_dict(), "provenance": provenance}
-    write_json(args.out / "summary.json", document)
+        files = write_run_files(
+            store, args.out, provenance, args.objective_measures, args.objectives
+        )
+        problems = store.problems()
+    rows, summary = files.rows, files.summary
     if args.json:
-        print_json(document)
+        print_json(files.document)
         return 0
     print(
         f"results: {args.out / 'results.sqlite'} ({rows} rows; "

@@ -1,17 +1,25 @@
-"""The provenance record of a stream run: version, configuration and its hash, stream digests."""
+"""What a run leaves beside its results database: provenance record, frames.csv, summary.json.
+
+The provenance of a stream run (version, configuration and its hash, stream digests), and
+:func:`write_run_files`, the one writer of a results folder's ``frames.csv`` and
+``summary.json`` (``bag``, ``merge`` and ``eval --out`` leave the same files).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from dispeval_ros.core.provenance import provenance_record
+from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.provenance import digests_to_damage
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, SUMMARY_JSON, ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
+from dispeval_ros.summary import RunSummary, summarize
 
 
 def stream_topics(config: CoreConfig) -> list[str]:
@@ -75,3 +83,31 @@ def record_bag_provenance(
     record = provenance_record(configuration, {"streams": streams.record()})
     store.set_provenance(record)
     return record
+
+
+@dataclass(frozen=True)
+class RunFiles:
+    """What :func:`write_run_files` wrote: CSV rows, the summary and the ``summary.json`` document."""
+
+    rows: int
+    summary: RunSummary
+    document: dict[str, Any]
+
+
+def write_run_files(
+    store: ResultsStore,
+    folder: Path,
+    provenance: Mapping[str, object],
+    measures: Sequence[str] | None = None,
+    granularity: str = "sequence",
+) -> RunFiles:
+    """Write ``folder/frames.csv`` and ``folder/summary.json`` of ``store`` (the run's summary).
+
+    ``measures`` and ``granularity`` are those of :func:`~dispeval_ros.summary.summarize`;
+    ``summary.json`` is the summary with the run's ``provenance`` record.
+    """
+    rows = store.export_csv(folder / FRAMES_CSV)
+    summary = summarize(store, measures, granularity)
+    document = {**summary.to_dict(), "provenance": dict(provenance)}
+    write_json(folder / SUMMARY_JSON, document)
+    return RunFiles(rows, summary, document)
