@@ -51,7 +51,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "stamp. A bag that cannot be read is one line; the others are still shown.",
     )
     parser.add_argument(
-        "bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag"
+        "bags",
+        nargs="+",
+        type=Path,
+        metavar="BAG",
+        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
     )
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run_command)
@@ -227,7 +231,7 @@ def _use(topic: TopicFacts) -> str:
 
 
 def method_names(topics: Sequence[str]) -> list[str]:
-    """A readable, unique method name per DisparityImage topic (``/stereo/sgbm/disparity``: sgbm)."""
+    """A short, unique method name per DisparityImage topic (``/stereo/sgbm/disparity``: sgbm)."""
     parts = [[part for part in topic.split("/") if part] for topic in topics]
     names = []
     for words in parts:

@@ -5,8 +5,9 @@ copied in the order given, so merging the results of two halves of a list of bag
 database of one run over the whole list, and summaries and reports cover every sequence.
 
 Beside ``OUT/results.sqlite`` the merge writes the ``frames.csv`` and ``summary.json`` a
-``dispeval bag`` run over all the bags writes (:func:`~dispeval_ros.offline.records.write_run_files`),
-its provenance naming the merged results and theirs.
+``dispeval bag`` run over all the bags writes
+(:func:`~dispeval_ros.offline.records.write_run_files`), its provenance naming the merged
+results and theirs.
 
 The merge is written to a scratch folder beside ``OUT`` and its files are renamed into place
 only once every input was read and the summary made: a refused merge (a unit twice, a damaged

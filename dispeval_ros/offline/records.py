@@ -2,17 +2,21 @@
 
 The provenance of a stream run (version, configuration and its hash, stream digests), and
 :func:`write_run_files`, the one writer of a results folder's ``frames.csv`` and
-``summary.json`` (``bag``, ``merge`` and ``eval --out`` leave the same files).
+``summary.json`` (``bag``, ``merge`` and ``eval --out`` leave the same files), and
+:func:`write_scored_folder`, the results folder of frames scored in one go (``eval --out``).
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from dispeval_ros.core.provenance import provenance_record
+from dispeval_ros.core.records import FrameScores, MatchCounts
+from dispeval_ros.errors import ConfigurationError, ResultsConflictError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.provenance import digests_to_damage
 from dispeval_ros.io.store import FRAMES_CSV, SUMMARY_JSON, ResultsStore
@@ -87,7 +91,7 @@ def record_bag_provenance(
 
 @dataclass(frozen=True)
 class RunFiles:
-    """What :func:`write_run_files` wrote: CSV rows, the summary and the ``summary.json`` document."""
+    """What :func:`write_run_files` wrote: CSV rows, the summary, the ``summary.json`` document."""
 
     rows: int
     summary: RunSummary
@@ -111,3 +115,37 @@ def write_run_files(
     document = {**summary.to_dict(), "provenance": dict(provenance)}
     write_json(folder / SUMMARY_JSON, document)
     return RunFiles(rows, summary, document)
+
+
+def write_scored_folder(
+    folder: Path,
+    sequence: str,
+    source: str,
+    info: Mapping[str, object],
+    frames: Sequence[FrameScores],
+    provenance: Mapping[str, Any],
+) -> RunFiles:
+    """A results folder of frames scored in one go (``eval --out``), laid out as a bag run's.
+
+    One sequence, one unit holding every frame, each method matched on the frames it has;
+    the configuration is the provenance's. ``frames.csv`` and ``summary.json`` as
+    :func:`write_run_files` writes them. Refuses (one line) a folder that holds results.
+    """
+    configuration = provenance.get("configuration")
+    counts = Counter(frame.method for frame in frames)
+    try:
+        store = ResultsStore.create(folder, dict(configuration or {}))
+    except ResultsConflictError:
+        raise ConfigurationError(
+            f"{folder} already holds results; choose another --out (a new results folder)"
+        ) from None
+    with store:
+        store.set_sequence(sequence, source, info)
+        store.add_unit(
+            sequence,
+            "000000",
+            frames,
+            counts={method: MatchCounts(n, 0, 0, 0) for method, n in counts.items()},
+        )
+        store.set_provenance(provenance)
+        return write_run_files(store, folder, provenance)

@@ -1,4 +1,4 @@
-"""``dispeval merge`` leaves the frames.csv and summary.json of one ``bag`` run over all the bags."""
+"""``dispeval merge`` leaves the frames.csv and summary.json of one ``bag`` run over all bags."""
 
 from __future__ import annotations
 
@@ -82,7 +82,9 @@ def test_merge_options_shape_the_summary_as_bag_options_do(
     out = tmp_path / "merged_frames"
     options = ["--objectives", "frame", "--objective-measures", "bmp"]
     capsys.readouterr()
-    assert main(["merge", str(out), str(runs["north"]), str(runs["south"]), *options, "--json"]) == 0
+    assert (
+        main(["merge", str(out), str(runs["north"]), str(runs["south"]), *options, "--json"]) == 0
+    )
     printed = json.loads(capsys.readouterr().out)
     assert printed == json.loads((out / SUMMARY_JSON).read_text())
     assert printed["granularity"] == "frame"
