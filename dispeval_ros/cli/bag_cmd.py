@@ -30,13 +30,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "ground truth by header stamp; per-frame rows go to DIR/results.sqlite as the run goes, "
         "then DIR/frames.csv and DIR/summary.json, and the per-sequence summary is printed.",
     )
-    parser.add_argument(
-        "bags",
-        nargs="+",
-        type=Path,
-        metavar="BAG",
-        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
-    )
+    add_bags_argument(parser)
     run = streams.add_stream_options(parser)
     run.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     run.add_argument(
@@ -57,6 +51,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     protocol_eval.add_stream_option(parser)
     parser.set_defaults(run=run_command)
+
+
+def add_bags_argument(parser: argparse.ArgumentParser) -> None:
+    """The ``BAG...`` positional of the commands that read bags (``bag``, ``info``)."""
+    parser.add_argument(
+        "bags",
+        nargs="+",
+        type=Path,
+        metavar="BAG",
+        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
+    )
 
 
 def slice_option(text: str) -> int | None:

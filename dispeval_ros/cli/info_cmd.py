@@ -21,6 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from dispeval_ros.cli.bag_cmd import add_bags_argument
 from dispeval_ros.cli.output import print_json, table
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource
@@ -50,13 +51,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "and last message: 'dispeval bag' cuts its units by log time and joins frames by "
         "stamp. A bag that cannot be read is one line; the others are still shown.",
     )
-    parser.add_argument(
-        "bags",
-        nargs="+",
-        type=Path,
-        metavar="BAG",
-        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
-    )
+    add_bags_argument(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run_command)
 
