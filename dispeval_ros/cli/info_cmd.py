@@ -4,13 +4,17 @@ Topics, types, message counts, the log-time span and, per topic, how far the fir
 messages were logged after their header stamps (the offset ``dispeval bag`` warns about,
 :func:`~dispeval_ros.offline.units.log_minus_stamp`), for every format
 :class:`~dispeval_ros.io.bags.BagSource` reads. Each topic says which option of ``dispeval
-bag`` could read it, and a ready command line is suggested. Reads two messages per topic
-(the first, and the last from near the end of the bag), not the whole bag.
+bag`` could read it, and a ready command line is suggested, with the ``--tolerance`` the
+stamps need where the default cannot join them. Reads the first and last message of each
+topic (the last from near the end of the bag) and the first :data:`STAMP_SAMPLE` of the
+ground truth and the methods, not the whole bag.
 """
 
 from __future__ import annotations
 
 import argparse
+import bisect
+import itertools
 import math
 import re
 import shlex
@@ -26,7 +30,7 @@ from dispeval_ros.cli.output import print_json, table
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.grey import GREY_SOURCES
-from dispeval_ros.io.messages import GT_ENCODINGS
+from dispeval_ros.io.messages import GT_ENCODINGS, stamp_ns
 from dispeval_ros.stream.config import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
@@ -38,6 +42,10 @@ from dispeval_ros.stream.config import (
 
 HELP = "show a bag's topics, counts, time span and stamp offsets, and a 'dispeval bag' command"
 _GT_NAME = re.compile(r"ground_?truth|(^|[/_])gt($|[/_])|truth", re.IGNORECASE)
+STAMP_SAMPLE = 32
+"""Messages per topic whose stamps the ``--tolerance`` suggestion compares (from the start)."""
+_CLOCKS = ("--gt", "--gt-cloud", "--left-image")
+"""The options naming the topic the methods are joined to (the frame clock)."""
 _LEAVES = ("disparity", "disparity_image", "image")
 """Topic leaves that do not name a method (``/stereo/sgbm/disparity`` is ``sgbm``)."""
 
@@ -141,8 +149,69 @@ def bag_facts(path: Path) -> BagFacts:
                 facts.damage = _read_ends(source, item) or facts.damage
             item.use = _use(item)
             facts.topics.append(item)
-    facts.options, facts.notes = suggestion(facts)
+        facts.options, facts.notes = suggestion(facts)
+        _tolerance(source, facts)
     return facts
+
+
+def _tolerance(source: BagSource, facts: BagFacts) -> None:
+    """Add ``--tolerance`` to the suggestion where the default cannot join the stamps."""
+    from dispeval_ros.stream.config import core_default
+
+    joined = [facts.options[i + 1] for i, option in enumerate(facts.options) if option in _CLOCKS]
+    methods = [
+        facts.options[i + 1].partition("=")[2]
+        for i, option in enumerate(facts.options)
+        if option == "--method"
+    ]
+    if not joined or not methods:
+        return
+    gap = stamp_gap_ns(source, joined[0], methods)
+    default = int(core_default("tolerance_ns"))
+    if gap is None or gap <= default:
+        return
+    chosen = math.ceil(gap / 1e6)
+    facts.options += ["--tolerance", str(chosen)]
+    facts.notes.append(
+        f"method stamps are up to {gap / 1e6:.2f} ms from the nearest {joined[0]} stamp (first "
+        f"{STAMP_SAMPLE} messages), beyond the default --tolerance {default / 1e6:g} ms: the "
+        f"command gives --tolerance {chosen}"
+    )
+
+
+def stamp_gap_ns(source: BagSource, clock: str, methods: Sequence[str]) -> int | None:
+    """The largest stamp gap from a method's message to the nearest ``clock`` (GT) message.
+
+    Over the first :data:`STAMP_SAMPLE` messages of each topic; a gap of half the shortest GT
+    period or more is to another frame (a frame missing), not a tolerance. None: no GT stamp.
+    """
+    stamps: dict[str, list[int]] = {topic: [] for topic in (clock, *methods)}
+    messages = source.messages(list(stamps), on_error=_skip)
+    try:
+        for topic, _, msg in messages:
+            if hasattr(msg, "header") and len(stamps[topic]) < STAMP_SAMPLE:
+                stamps[topic].append(stamp_ns(msg.header))
+            if all(len(found) >= STAMP_SAMPLE for found in stamps.values()):
+                break
+    except DispevalError:  # damage: the stamps before it
+        pass
+    finally:
+        close = getattr(messages, "close", None)
+        if close is not None:
+            close()
+    truth = sorted(set(stamps[clock]))
+    if not truth:
+        return None
+    periods = [b - a for a, b in itertools.pairwise(truth)]
+    half = min(periods) // 2 if periods else None
+    worst = 0
+    for topic in methods:
+        for stamp in stamps[topic]:
+            at = bisect.bisect_left(truth, stamp)
+            gap = min(abs(stamp - truth[i]) for i in (at - 1, at) if 0 <= i < len(truth))
+            if half is None or gap < half:
+                worst = max(worst, gap)
+    return worst
 
 
 def _read_ends(source: BagSource, item: TopicFacts) -> str | None:

@@ -14,6 +14,8 @@ from dispeval_ros.cli.main import main
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.offline.make_bag import GT_TOPIC, synthetic_frames, write_bag
 
+KITTI_RAW = "kitti-raw-drive-0048/2011_09_26"
+
 
 @pytest.fixture(scope="module")
 def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
@@ -182,3 +184,25 @@ def test_method_names_are_short_and_unique() -> None:
         "a_sgbm_disparity",
         "b_sgbm_disparity",
     ]
+
+
+@pytest.mark.slow
+def test_a_kitti_raw_drive_gets_the_tolerance_its_scan_stamps_need(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = tmp_path / "drive"
+    assert main(["make-bag", str(bag), "--scene", str(shared_data / KITTI_RAW)]) == 0
+    document = info_json(capsys, bag)["bags"][0]
+    words = shlex.split(document["command"])
+    assert words[words.index("--gt-cloud") + 1] == "/lidar/points"
+    assert words[words.index("--tolerance") + 1] == "11"  # scans 10.48–10.55 ms from the images
+    assert any("up to 10.55 ms" in note for note in document["notes"])
+    assert main([*words[1:], "--out", str(tmp_path / "out"), "--quiet", "--json"]) == 0
+    counts = json.loads(capsys.readouterr().out)["sequences"][0]["counts"]
+    assert len(counts) == 5
+    matched = {"matched": 11, "unmatched": 0, "dropped": 0, "failed": 0}
+    assert all(c == matched for c in counts.values())
+    without = [*words[1 : words.index("--tolerance")], "--out", str(tmp_path / "o2"), "--quiet"]
+    assert main([*without, "--json"]) == 0  # the default tolerance joins nothing
+    counts = json.loads(capsys.readouterr().out)["sequences"][0]["counts"]
+    assert all(c["matched"] == 0 for c in counts.values())
