@@ -12,7 +12,6 @@ from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.jsonio import write_json
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -31,13 +30,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "ground truth by header stamp; per-frame rows go to DIR/results.sqlite as the run goes, "
         "then DIR/frames.csv and DIR/summary.json, and the per-sequence summary is printed.",
     )
-    parser.add_argument(
-        "bags",
-        nargs="+",
-        type=Path,
-        metavar="BAG",
-        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
-    )
+    add_bags_argument(parser)
     run = streams.add_stream_options(parser)
     run.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     run.add_argument(
@@ -58,6 +51,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     protocol_eval.add_stream_option(parser)
     parser.set_defaults(run=run_command)
+
+
+def add_bags_argument(parser: argparse.ArgumentParser) -> None:
+    """The ``BAG...`` positional of the commands that read bags (``bag``, ``info``)."""
+    parser.add_argument(
+        "bags",
+        nargs="+",
+        type=Path,
+        metavar="BAG",
+        help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag",
+    )
 
 
 def slice_option(text: str) -> int | None:
@@ -136,8 +140,7 @@ def run_command(args: argparse.Namespace) -> int:
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.bag_eval import bag_location, evaluate_bags
     from dispeval_ros.offline.executors import ready_executor
-    from dispeval_ros.offline.records import BagStreams, record_bag_provenance
-    from dispeval_ros.summary import summarize
+    from dispeval_ros.offline.records import BagStreams, record_bag_provenance, write_run_files
 
     preset = protocol_eval.apply_stream_preset(args)
     config = streams.core_config(args, "bags")
@@ -165,14 +168,14 @@ def run_command(args: argparse.Namespace) -> int:
             alongside=digests.compute,
             warn=lambda text: print(f"dispeval bag: warning: {text}", file=sys.stderr),
         )
-        rows = store.export_csv(args.out / "frames.csv")
-        summary = summarize(store, args.objective_measures, args.objectives)
-        problems = store.problems()
         provenance = record_bag_provenance(store, args.bags, record, config, digests)
-    document = {**summary.to_dict(), "provenance": provenance}
-    write_json(args.out / "summary.json", document)
+        files = write_run_files(
+            store, args.out, provenance, args.objective_measures, args.objectives
+        )
+        problems = store.problems()
+    rows, summary = files.rows, files.summary
     if args.json:
-        print_json(document)
+        print_json(files.document)
         return 0
     print(
         f"results: {args.out / 'results.sqlite'} ({rows} rows; "

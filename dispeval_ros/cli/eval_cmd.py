@@ -112,6 +112,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     common.add_camera_options(parser)
     protocol_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="also write the results folder 'dispeval bag' writes (results.sqlite, frames.csv, "
+        "summary.json; the scene is one sequence, its frames numbered 0, 1, …) for 'dispeval "
+        "report DIR' and 'dispeval models DIR'",
+    )
     parser.set_defaults(run=run)
 
 
@@ -400,6 +408,38 @@ def _document(args: argparse.Namespace, evaluator: Evaluator, scored: _Scored) -
     return document
 
 
+def _write_out(
+    args: argparse.Namespace, scored: list[_Scored], provenance: dict[str, object]
+) -> str:
+    """Write ``--out`` as a bag run's results folder; the line saying what was written."""
+    from dispeval_ros.core.records import FrameScores
+    from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON
+    from dispeval_ros.offline.bag_eval import bag_location, sequence_names
+    from dispeval_ros.offline.records import write_scored_folder
+
+    where = Path(args.scene or args.gt or args.left_image)
+    sequence = sequence_names([where])[0]
+    frames = [
+        FrameScores(sequence, stamp, method, scores)
+        for stamp, one in enumerate(scored)
+        for method, scores in one.results.items()
+    ]
+    info = {
+        "frames": [
+            {"stamp": stamp, "frame": one.frame.frame, "gt_source": one.frame.gt_source}
+            for stamp, one in enumerate(scored)
+        ],
+        "camera": _camera_dict(scored[0].frame.camera),
+    }
+    files = write_scored_folder(
+        args.out, sequence, bag_location(where), info, frames, provenance
+    )
+    return (
+        f"results: {args.out / RESULTS_FILE} ({files.rows} rows; {args.out / FRAMES_CSV}, "
+        f"{args.out / SUMMARY_JSON})"
+    )
+
+
 def _text(evaluator: Evaluator, scored: _Scored) -> str:
     """One frame's human report: where the GT came from, the camera, tables, models."""
     frame, reference, pair = scored.frame, scored.reference, scored.pair
@@ -441,6 +481,11 @@ def run(args: argparse.Namespace) -> int:
 
     scene_only = [o for o, v in (("--frame", args.frame), ("--gt-source", args.gt_source)) if v]
     if args.protocol is not None:
+        if args.out is not None:
+            raise ConfigurationError(
+                "--out does not apply with --protocol: a results folder holds the sums of "
+                "dispeval's measures, not a benchmark's official numbers (drop one of them)"
+            )
         if scene_only:
             raise ConfigurationError(
                 f"{scene_only[0]} chooses a --scene frame's GT for the measures; --protocol "
@@ -499,6 +544,9 @@ def run(args: argparse.Namespace) -> int:
     evaluator = common.evaluator_from_args(args, roi_names)
     scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
     inputs = [path for s in scored for path in s.frame.inputs]
+    wanted = args.json or args.out is not None  # the text alone hashes nothing
+    provenance = _provenance(args, evaluator, scored, inputs) if wanted else {}
+    written = None if args.out is None else _write_out(args, scored, provenance)
     if args.json:
         documents = [_document(args, evaluator, s) for s in scored]
         if len(documents) == 1:
@@ -509,8 +557,10 @@ def run(args: argparse.Namespace) -> int:
                 "frames": [entry for s in scored for entry in _entries(s)],
                 "per_frame": documents,
             }
-        document["provenance"] = _provenance(args, evaluator, scored, inputs)
+        document["provenance"] = provenance
         print_json(document)
         return 0
     print("\n\n".join(_text(evaluator, s) for s in scored))
+    if written is not None:
+        print(f"\n{written}")
     return 0

@@ -4,9 +4,15 @@ Runs merge when they were made with the same configuration (the bags aside): the
 copied in the order given, so merging the results of two halves of a list of bags gives the
 database of one run over the whole list, and summaries and reports cover every sequence.
 
-The merge is written to a scratch folder beside ``OUT`` and renamed into place only once every
-input was read: a refused merge (a unit twice, a damaged input…) leaves ``OUT`` as it was, so
-the corrected command runs as it is (merge has no ``--resume``).
+Beside ``OUT/results.sqlite`` the merge writes the ``frames.csv`` and ``summary.json`` a
+``dispeval bag`` run over all the bags writes
+(:func:`~dispeval_ros.offline.records.write_run_files`), its provenance naming the merged
+results and theirs.
+
+The merge is written to a scratch folder beside ``OUT`` and its files are renamed into place
+only once every input was read and the summary made: a refused merge (a unit twice, a damaged
+input…) leaves ``OUT`` as it was, so the corrected command runs as it is (merge has no
+``--resume``). ``results.sqlite`` is renamed last, so a folder holding it holds the other two.
 """
 
 from __future__ import annotations
@@ -21,7 +27,8 @@ from pathlib import Path
 
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.errors import ConfigurationError, InputError
-from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, ResultsStore
+from dispeval_ros.offline.records import RunFiles, write_run_files
 
 PER_RUN_KEYS = ("bags",)
 """Configuration keys that differ between the runs being merged (concatenated in the result)."""
@@ -29,12 +36,13 @@ PER_RUN_KEYS = ("bags",)
 
 @dataclass(frozen=True)
 class MergeReport:
-    """What a merge wrote: results folder, runs, sequences and units."""
+    """What a merge wrote: results database, runs, sequences, units, and the CSV and summary."""
 
     path: Path
     runs: int
     sequences: int
     units: int
+    files: RunFiles
 
 
 def merged_config(configs: Sequence[tuple[Path, dict[str, object]]]) -> dict[str, object]:
@@ -57,10 +65,17 @@ def merged_config(configs: Sequence[tuple[Path, dict[str, object]]]) -> dict[str
     return merged
 
 
-def merge_results(out: Path, sources: Sequence[Path]) -> MergeReport:
+def merge_results(
+    out: Path,
+    sources: Sequence[Path],
+    measures: Sequence[str] | None = None,
+    granularity: str = "sequence",
+) -> MergeReport:
     """Write ``out/results.sqlite`` holding every unit of ``sources``, in the order given.
 
-    Nothing is written to ``out`` unless the whole merge succeeds (see the module docstring).
+    And ``out/frames.csv`` and ``out/summary.json`` (``measures`` and ``granularity`` as in
+    :func:`~dispeval_ros.summary.summarize`). Nothing is written to ``out`` unless the whole
+    merge succeeds (see the module docstring).
     """
     if not sources:
         raise ConfigurationError("nothing to merge: give at least one results folder")
@@ -74,22 +89,30 @@ def merge_results(out: Path, sources: Sequence[Path]) -> MergeReport:
         config = merged_config([(store.path, store.config()) for store in stores])
         scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.merging-", dir=_existing(out.parent)))
         try:
-            units, sequences = _merge_into(scratch, out / RESULTS_FILE, config, stores)
+            units, sequences, files = _merge_into(
+                scratch, out / RESULTS_FILE, config, stores, measures, granularity
+            )
             out.mkdir(parents=True, exist_ok=True)
             _check_target(out)
-            os.replace(scratch / RESULTS_FILE, out / RESULTS_FILE)
+            for name in (FRAMES_CSV, SUMMARY_JSON, RESULTS_FILE):  # the database last
+                os.replace(scratch / name, out / name)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     finally:
         for store in stores:
             store.close()
-    return MergeReport(out / RESULTS_FILE, len(stores), sequences, units)
+    return MergeReport(out / RESULTS_FILE, len(stores), sequences, units, files)
 
 
 def _merge_into(
-    folder: Path, target: Path, config: dict[str, object], stores: Sequence[ResultsStore]
-) -> tuple[int, int]:
-    """Units and sequences written to ``folder``'s new results database (to become ``target``)."""
+    folder: Path,
+    target: Path,
+    config: dict[str, object],
+    stores: Sequence[ResultsStore],
+    measures: Sequence[str] | None,
+    granularity: str,
+) -> tuple[int, int, RunFiles]:
+    """Units, sequences and the run's files written to ``folder`` (``target``: its database)."""
     units = 0
     with ResultsStore.create(folder, config) as merged:
         merged.path = target  # refusals name the results as the user will find them
@@ -100,18 +123,18 @@ def _merge_into(
                 raise InputError(
                     f"{store.path}: cannot read the results database ({error})"
                 ) from None
-        merged.set_provenance(
-            provenance_record(
-                config,
-                {
-                    "merged": [
-                        {"results": str(store.path), "provenance": store.provenance()}
-                        for store in stores
-                    ]
-                },
-            )
+        provenance = provenance_record(
+            config,
+            {
+                "merged": [
+                    {"results": str(store.path), "provenance": store.provenance()}
+                    for store in stores
+                ]
+            },
         )
-        return units, len(merged.sequences())
+        merged.set_provenance(provenance)
+        files = write_run_files(merged, folder, provenance, measures, granularity)
+        return units, len(merged.sequences()), files
 
 
 def _check_target(out: Path) -> None:

@@ -1,17 +1,29 @@
-"""The provenance record of a stream run: version, configuration and its hash, stream digests."""
+"""What a run leaves beside its results database: provenance record, frames.csv, summary.json.
+
+The provenance of a stream run (version, configuration and its hash, stream digests), and
+:func:`write_run_files`, the one writer of a results folder's ``frames.csv`` and
+``summary.json`` (``bag``, ``merge`` and ``eval --out`` leave the same files), and
+:func:`write_scored_folder`, the results folder of frames scored in one go (``eval --out``).
+"""
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from dispeval_ros.core.provenance import provenance_record
+from dispeval_ros.core.records import FrameScores, MatchCounts
+from dispeval_ros.errors import ConfigurationError, ResultsConflictError
+from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.provenance import digests_to_damage
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, SUMMARY_JSON, ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
+from dispeval_ros.summary import RunSummary, summarize
 
 
 def stream_topics(config: CoreConfig) -> list[str]:
@@ -75,3 +87,65 @@ def record_bag_provenance(
     record = provenance_record(configuration, {"streams": streams.record()})
     store.set_provenance(record)
     return record
+
+
+@dataclass(frozen=True)
+class RunFiles:
+    """What :func:`write_run_files` wrote: CSV rows, the summary, the ``summary.json`` document."""
+
+    rows: int
+    summary: RunSummary
+    document: dict[str, Any]
+
+
+def write_run_files(
+    store: ResultsStore,
+    folder: Path,
+    provenance: Mapping[str, object],
+    measures: Sequence[str] | None = None,
+    granularity: str = "sequence",
+) -> RunFiles:
+    """Write ``folder/frames.csv`` and ``folder/summary.json`` of ``store`` (the run's summary).
+
+    ``measures`` and ``granularity`` are those of :func:`~dispeval_ros.summary.summarize`;
+    ``summary.json`` is the summary with the run's ``provenance`` record.
+    """
+    rows = store.export_csv(folder / FRAMES_CSV)
+    summary = summarize(store, measures, granularity)
+    document = {**summary.to_dict(), "provenance": dict(provenance)}
+    write_json(folder / SUMMARY_JSON, document)
+    return RunFiles(rows, summary, document)
+
+
+def write_scored_folder(
+    folder: Path,
+    sequence: str,
+    source: str,
+    info: Mapping[str, object],
+    frames: Sequence[FrameScores],
+    provenance: Mapping[str, Any],
+) -> RunFiles:
+    """A results folder of frames scored in one go (``eval --out``), laid out as a bag run's.
+
+    One sequence, one unit holding every frame, each method matched on the frames it has;
+    the configuration is the provenance's. ``frames.csv`` and ``summary.json`` as
+    :func:`write_run_files` writes them. Refuses (one line) a folder that holds results.
+    """
+    configuration = provenance.get("configuration")
+    counts = Counter(frame.method for frame in frames)
+    try:
+        store = ResultsStore.create(folder, dict(configuration or {}))
+    except ResultsConflictError:
+        raise ConfigurationError(
+            f"{folder} already holds results; choose another --out (a new results folder)"
+        ) from None
+    with store:
+        store.set_sequence(sequence, source, info)
+        store.add_unit(
+            sequence,
+            "000000",
+            frames,
+            counts={method: MatchCounts(n, 0, 0, 0) for method, n in counts.items()},
+        )
+        store.set_provenance(provenance)
+        return write_run_files(store, folder, provenance)

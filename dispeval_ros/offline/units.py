@@ -260,9 +260,12 @@ def stamp_offset_ns(source: BagSource, topic: str) -> int | None:
     finally:
         if isinstance(messages, Generator):
             messages.close()
-    if first is None or not hasattr(first[2], "header"):
-        return None
-    return first[1] - stamp_ns(first[2].header)
+    return None if first is None else log_minus_stamp(first[1], first[2])
+
+
+def log_minus_stamp(log_ns: int, msg: Any) -> int | None:
+    """How far a message was logged after its header stamp, in ns (None: it has no header)."""
+    return log_ns - stamp_ns(msg.header) if hasattr(msg, "header") else None
 
 
 def duration_text(ns: int) -> str:

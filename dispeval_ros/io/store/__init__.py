@@ -15,7 +15,7 @@ run per folder), ``rows`` (a unit's rows, made without a database), ``reader``, 
 from __future__ import annotations
 
 from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
-from dispeval_ros.io.store.export import CsvExport
+from dispeval_ros.io.store.export import FRAMES_CSV, SUMMARY_JSON, CsvExport
 from dispeval_ros.io.store.reader import ResultsReader
 from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
@@ -30,8 +30,10 @@ from dispeval_ros.io.store.writer import ResultsWriter
 __all__ = [
     "APPLICATION_ID",
     "FAILED_MARK",
+    "FRAMES_CSV",
     "RESULTS_FILE",
     "SCHEMA_VERSION",
+    "SUMMARY_JSON",
     "FrameScores",
     "MatchCounts",
     "PreparedUnit",

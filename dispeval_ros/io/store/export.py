@@ -1,4 +1,4 @@
-"""Exporting a results database: every frame row as CSV."""
+"""Exporting a results database: every frame row as CSV, and the names of a run's files."""
 
 from __future__ import annotations
 
@@ -9,6 +9,11 @@ from pathlib import Path
 
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store.reader import ResultsReader
+
+FRAMES_CSV = "frames.csv"
+"""Every frame row of a results folder as CSV (:meth:`CsvExport.export_csv`)."""
+SUMMARY_JSON = "summary.json"
+"""The summary and provenance of a results folder (written by the run that made it)."""
 
 
 class CsvExport(ResultsReader):
