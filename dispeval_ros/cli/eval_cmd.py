@@ -492,6 +492,10 @@ def run(args: argparse.Namespace) -> int:
                 "reads the benchmark's own GT of every frame"
             )
         return protocol_eval.run(args)
+    if args.out is not None:
+        from dispeval_ros.offline.records import check_new_results_folder
+
+        check_new_results_folder(args.out)
     if args.roi_labels and args.roi is None:
         raise ConfigurationError("--roi-labels names the classes of --roi FILE: give --roi too")
     common.positive_option(args.gt_scale, "--gt-scale")

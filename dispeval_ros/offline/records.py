@@ -19,7 +19,7 @@ from dispeval_ros.core.records import FrameScores, MatchCounts
 from dispeval_ros.errors import ConfigurationError, ResultsConflictError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.provenance import digests_to_damage
-from dispeval_ros.io.store import FRAMES_CSV, SUMMARY_JSON, ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
@@ -117,6 +117,18 @@ def write_run_files(
     return RunFiles(rows, summary, document)
 
 
+def _holds_results(folder: Path) -> ConfigurationError:
+    return ConfigurationError(
+        f"{folder} already holds results; choose another --out (a new results folder)"
+    )
+
+
+def check_new_results_folder(folder: Path) -> None:
+    """Refuse (one line) a folder that already holds results, before any scoring is spent."""
+    if (folder / RESULTS_FILE).exists():
+        raise _holds_results(folder)
+
+
 def write_scored_folder(
     folder: Path,
     sequence: str,
@@ -136,9 +148,7 @@ def write_scored_folder(
     try:
         store = ResultsStore.create(folder, dict(configuration or {}))
     except ResultsConflictError:
-        raise ConfigurationError(
-            f"{folder} already holds results; choose another --out (a new results folder)"
-        ) from None
+        raise _holds_results(folder) from None
     with store:
         store.set_sequence(sequence, source, info)
         store.add_unit(

@@ -149,6 +149,10 @@ def test_existing_results_and_protocol_runs_are_refused_leaving_the_folder(
     capsys.readouterr()
     code = main(eval_args(shared_data, estimates, "--out", str(out)))
     assert_refused(code, capsys.readouterr().err, str(out), "already holds results")
+    # refused before anything is read or scored: an unreadable estimate is not reached
+    broken = {**estimates, "missing": tmp_path / "nowhere.pfm"}
+    code = main(eval_args(shared_data, broken, "--out", str(out)))
+    assert_refused(code, capsys.readouterr().err, str(out), "already holds results")
     code = main(
         eval_args(shared_data, estimates, "--out", str(tmp_path / "p"), "--protocol", "eth3d")
     )
