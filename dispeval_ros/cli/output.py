@@ -23,10 +23,16 @@ def text_width() -> int:
 
 
 def wrapped(text: str, width: int | None = None, indent: str = "  ") -> str:
-    """Each line of ``text`` wrapped at ``width``, continuation lines indented by ``indent``."""
+    """Each line of ``text`` wrapped at ``width``, continuation lines indented by ``indent``.
+
+    Words are never cut (a long path stays whole, to be copied).
+    """
     limit = width or text_width()
     return "\n".join(
-        textwrap.fill(line, limit, subsequent_indent=indent, break_on_hyphens=False) or line
+        textwrap.fill(
+            line, limit, subsequent_indent=indent, break_long_words=False, break_on_hyphens=False
+        )
+        or line
         for line in text.split("\n")
     )
 
