@@ -7,6 +7,7 @@ frame whose official GT has no disparity jump (so ``boundary`` is empty).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import re
@@ -78,8 +79,9 @@ def test_make_bag_progress_counts_frames_not_slices() -> None:
     stream = io.StringIO()
     progress = Progress("dispeval make-bag: writing", stream=stream, unit="frames")
     progress.update(1, 20, 1)
-    assert "1/20 frames" in stream.getvalue()
-    assert "slices" not in stream.getvalue()
+    assert re.fullmatch(
+        r"dispeval make-bag: writing \[#? *\] 1/20 frames  \d+\.\d frames/s\n", stream.getvalue()
+    )
 
 
 # -- empty criteria --------------------------------------------------------------------------
@@ -144,27 +146,34 @@ def test_stored_results_leave_the_empty_criterion_out(
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+def drive(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
+    """A 3-frame synthetic drive, what make-bag printed and its progress lines."""
     folder = tmp_path_factory.mktemp("tables")
     bag = folder / "drive.mcap"
-    buffer = io.StringIO()
-    import contextlib
-
-    with contextlib.redirect_stdout(buffer), contextlib.redirect_stderr(io.StringIO()):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         assert main(["make-bag", str(bag), "--storage", "mcap", "--frames", "3"]) == 0
-    return bag, buffer.getvalue()
+    return bag, out.getvalue(), err.getvalue()
 
 
-def test_make_bag_prints_fit_and_read_right(drive: tuple[Path, str]) -> None:
-    _bag, printed = drive
+def test_make_bag_prints_fit_and_read_right(drive: tuple[Path, str, str]) -> None:
+    _bag, printed, progress = drive
     assert printed.startswith("wrote 3 frames to ")
     assert not _too_wide(printed)
+    assert progress.splitlines()[-1].startswith("dispeval make-bag: writing [")
+    assert re.search(r"\] 3/3 frames  \d+\.\d frames/s$", progress.splitlines()[-1])
+
+
+def test_one_frame_reads_as_one_frame(tmp_path: Path, capsys: Any) -> None:
+    args = ["--frames", "1", "--width", "64", "--height", "32", "--no-lidar"]
+    printed = _run(capsys, "make-bag", str(tmp_path / "one"), *args)
+    assert printed.startswith("wrote 1 frame to ")
 
 
 def test_lidar_run_prints_its_depth_measures(
-    drive: tuple[Path, str], tmp_path: Path, capsys: Any
+    drive: tuple[Path, str, str], tmp_path: Path, capsys: Any
 ) -> None:
-    bag, _ = drive
+    bag = drive[0]
     args = ["bag", str(bag), "--gt-cloud", CLOUD_TOPIC, *CAMERA, *METHODS, "--quiet"]
     text = _run(capsys, *args, "--out", str(tmp_path / "lidar"))
     block = text.split("criterion: all (summed over the common frames)")[1].split("criterion:")[0]
@@ -176,9 +185,9 @@ def test_lidar_run_prints_its_depth_measures(
 
 
 def test_frame_objectives_print_frame_numbers_and_export_stamps(
-    drive: tuple[Path, str], tmp_path: Path, capsys: Any
+    drive: tuple[Path, str, str], tmp_path: Path, capsys: Any
 ) -> None:
-    bag, _ = drive
+    bag = drive[0]
     out = tmp_path / "results"
     _run(capsys, "bag", str(bag), "--gt", GT_TOPIC, *CAMERA, *METHODS, "--quiet", "--out", str(out))
     exported = tmp_path / "objectives.csv"

@@ -21,8 +21,8 @@ EMPTY_REASONS: dict[str, str] = {
     "all": "the ground truth has no valid point (finite and > 0)",
     "occluded": "no valid GT point is occluded in the right view",
     "boundary": (
-        f"the GT has no disparity jump > {_GAP} between valid 4-neighbours (semi-dense GT "
-        "such as KITTI's leaves out the points at depth edges)"
+        f"the GT has no disparity jump > {_GAP} between valid 4-neighbours (semi-dense GT, "
+        "as KITTI's or ETH3D's, leaves out the points at depth edges)"
     ),
     "interior": "every valid GT point is occluded or near a disparity jump",
     "nonocc": "every valid GT point is occluded",
