@@ -25,7 +25,10 @@ from dispeval_ros.core import evaluate_models
 from dispeval_ros.core.criteria import DEPTH, LEGACY, TEXTURE, VISIBILITY
 from dispeval_ros.core.criteria.empty import EMPTY_REASONS, empty_reason
 from dispeval_ros.core.objectives import objective_matrix
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import CLOUD_TOPIC, GT_TOPIC, LEFT_INFO, RIGHT_INFO
+from dispeval_ros.report.data import default_selection, evaluate_selection
+from dispeval_ros.summary import summarize
 
 STAMP = re.compile(r"\d{15,}")
 """A nanosecond stamp as printed (the synthetic drive's start: 1.7·10¹⁸ ns)."""
@@ -140,6 +143,10 @@ def test_stored_results_leave_the_empty_criterion_out(
             header = next(csv.reader(handle))
         assert len(header) == 13
         assert not any(h.startswith("boundary/") for h in header)
+    with ResultsStore.open(out) as store:  # the report compares what the summary compares
+        _, names, _, _ = evaluate_selection(store, default_selection(store))
+        assert names == summarize(store).overall_objectives
+        assert len(names) == 12
 
 
 # -- the first hour: demo, make-bag, bag (dense and LiDAR), models ----------------------------
