@@ -147,8 +147,8 @@ def models_text(result: ModelResult, objectives: Sequence[str]) -> str:
     shown = ", ".join(n.replace(" ", _KEEP) for n in names[:6])  # a name stays on one line
     shown += f", … ({len(names)} in all)" if len(names) > 6 else ""
     legend = (
-        "\nfNN: the frames every method delivered, from f00 in stamp order (--export names "
-        "them by stamp)"
+        "\nfNN: the frames every method delivered, from f00 in stamp order (the JSON and the "
+        "--export CSV name them by stamp)"
         if framed
         else ""
     )
