@@ -15,7 +15,7 @@ import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.measures import applies
-from dispeval_ros.core.objectives import default_objective_measures
+from dispeval_ros.core.objectives import default_objective_measures, has_points
 from dispeval_ros.core.records import MatchCounts
 from dispeval_ros.errors import ConfigurationError
 
@@ -80,9 +80,11 @@ def _block(
 
     A measure is an objective only on the criteria it is defined on: GT measures on GT
     criteria, GT-free ones (vpe, lrc) on ``gtfree:`` criteria, so the two never mix unless
-    both kinds of measure are chosen.
+    both kinds of measure are chosen; and only on criteria with points (:func:`has_points`:
+    ``boundary`` of a GT without disparity jumps is no objective, nor a criterion empty in the
+    frame of a per-frame objective).
     """
-    criteria = _criteria(scores[methods[0]])
+    criteria = [c for c in _criteria(scores[methods[0]]) if has_points(scores, c)]
     pairs = [(c, m) for c in criteria for m in measures if applies(m, c)]
     names = [f"{c}/{m}{label}" for c, m in pairs]
     block = np.array(

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dispeval_ros.cli import protocol_eval, streams
-from dispeval_ros.cli.output import print_json
+from dispeval_ros.cli.output import plural, print_json, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.cli.summary import run_summary_text
 from dispeval_ros.errors import ConfigurationError
@@ -178,12 +178,14 @@ def run_command(args: argparse.Namespace) -> int:
         print_json(files.document)
         return 0
     print(
-        f"results: {args.out / 'results.sqlite'} ({rows} rows; "
-        f"{args.out / 'frames.csv'}, {args.out / 'summary.json'})"
+        wrapped(
+            f"results: {args.out / 'results.sqlite'} ({rows} rows; "
+            f"{args.out / 'frames.csv'}, {args.out / 'summary.json'})"
+        )
     )
     print(
-        f"this run: {report.units_done} units, {report.frames} method-frames, "
-        f"{report.messages} messages read"
+        f"this run: {plural(report.units_done, 'unit')}, {plural(report.frames, 'method-frame')}"
+        f", {plural(report.messages, 'message')} read"
         + (f", {report.retries} unit(s) retried" if report.retries else "")
         + (
             f", {report.failed_before} unit(s) that had failed before tried again"

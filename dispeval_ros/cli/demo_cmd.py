@@ -13,9 +13,15 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dispeval_ros.cli.output import print_json, table
+from dispeval_ros.cli.output import print_json, table, wrapped
 from dispeval_ros.cli.progress import Progress
-from dispeval_ros.cli.summary import models_text, run_summary_text, scores_text
+from dispeval_ros.cli.summary import (
+    fitted_tables,
+    measure_header,
+    models_text,
+    run_summary_text,
+    scores_text,
+)
 from dispeval_ros.core import Evaluator, Scores, evaluate_models
 from dispeval_ros.core.objectives import default_objective_measures, objective_matrix
 from dispeval_ros.summary import RunSummary
@@ -28,6 +34,8 @@ HELP = "run the whole evaluation on the bundled sample bag (or one synthetic sce
 SHOWN = ("n", "density", "bmp", "mae", "rmse", "d1", "sze", "sze_mean", "bmpre")
 ROBOT_SHOWN = ("bmp", "mae", "d1")
 """Measures shown side by side for the dense GT and the LiDAR GT (robot mode)."""
+ROBOT_DEPTH = ("mae_z", "irmse")
+"""Depth-domain measures shown for the LiDAR GT (robot mode)."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -104,7 +112,7 @@ def replay_sample(args: argparse.Namespace) -> int:
         "camera_info": [LEFT_INFO, RIGHT_INFO],
         "images": [LEFT_IMAGE, RIGHT_IMAGE],
     }
-    progress = Progress("dispeval demo", enabled=not args.json)
+    progress = Progress("dispeval demo: dense GT", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
         _evaluate_sample(bag, config, store, progress)
         rows = store.export_csv(out / "frames.csv")
@@ -120,7 +128,9 @@ def replay_sample(args: argparse.Namespace) -> int:
         write_report(build_report_data(store, title="dispeval demo", thumbnails=thumbnails), report)
         # -- end of the report
     write_json(out / "summary.json", {**summary.to_dict(), "provenance": provenance})
-    robot = robot_mode(bag, methods, out / "robot", progress)
+    robot = robot_mode(
+        bag, methods, out / "robot", Progress("dispeval demo: robot mode (LiDAR GT)", not args.json)
+    )
     if args.json:
         document = {"results": str(out), "bag": str(bag), "report": str(report)}
         if robot is not None:
@@ -128,14 +138,20 @@ def replay_sample(args: argparse.Namespace) -> int:
         document["gt_free_agreement"] = gt_free_agreement(summary)  # type: ignore[assignment]
         print_json({**document, **summary.to_dict(), "provenance": provenance})
         return 0
-    print(f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth")
+    print(
+        wrapped(
+            f"sample bag: {bag}\nmethods: {', '.join(methods)}; criteria: all, visibility, depth"
+        )
+    )
     print(run_summary_text(summary, problems))
     print("\n" + gt_free_text(summary))
     if robot is not None:
         print("\n" + robot_text(summary, robot))
     print(
-        f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'}, "
-        f"{out / 'summary.json'})"
+        wrapped(
+            f"\nresults: {out / 'results.sqlite'} ({rows} rows, also {out / 'frames.csv'}, "
+            f"{out / 'summary.json'})"
+        )
     )
     print(f"report: {report}")
     print(f"(done in {time.perf_counter() - started:.1f} s)")
@@ -184,31 +200,35 @@ def _evaluate_sample(
 
 
 def robot_text(dense: RunSummary, lidar: RunSummary) -> str:
-    """Per method, criterion ``all``: the dense GT's and the LiDAR GT's scores side by side."""
+    """Per method, criterion ``all``: the dense GT's and the LiDAR GT's scores side by side.
+
+    Split by columns (:func:`fitted_tables`) to fit the terminal; the depth-domain measures
+    are the LiDAR's only (a dense map's depth errors are in the tables above).
+    """
     dense_scores = dense.sequences[0].scores
     lidar_scores = lidar.sequences[0].scores
     header = ["method", "n dense", "n LiDAR"]
     for measure in ROBOT_SHOWN:
-        header += [f"{measure} dense", f"{measure} LiDAR"]
-    header += ["mae_z m", "irmse 1/km"]
-    rows = [header]
+        header += [f"{measure_header(measure)} dense", f"{measure_header(measure)} LiDAR"]
+    header += [f"{measure_header(m)} LiDAR" for m in ROBOT_DEPTH]
+    rows: list[list[object]] = []
     for method, scores in dense_scores.items():
         if method not in lidar_scores:
             continue
         a, b = scores["all"], lidar_scores[method]["all"]
-        row = [method, f"{a['n']:.0f}", f"{b['n']:.0f}"]
+        row: list[object] = [method, int(a["n"]), int(b["n"])]
         for measure in ROBOT_SHOWN:
-            row += [f"{a[measure]:.3f}", f"{b[measure]:.3f}"]
-        row += [f"{b['mae_z']:.3f}", f"{b['irmse']:.3f}"]
-        rows.append(row)
-    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
-    lines = ["  ".join(cell.rjust(w) for cell, w in zip(row, widths, strict=True)) for row in rows]
-    lines.insert(1, "  ".join("-" * w for w in widths))
+            row += [a[measure], b[measure]]
+        rows.append(row + [b[m] for m in ROBOT_DEPTH])
     ranking = [m for m, _ in sorted(lidar_scores.items(), key=lambda item: item[1]["all"]["mae"])]
     return (
-        "robot mode: the same frames against the simulated LiDAR (/lidar/points, extrinsic from "
-        "/tf_static, parallax filter 7,0.1), criterion all, summed over the common frames\n"
-        + "\n".join(lines)
+        wrapped(
+            "robot mode: the same frames against the simulated LiDAR (/lidar/points, extrinsic "
+            "from /tf_static, parallax filter 7,0.1), criterion all, summed over the common "
+            "frames"
+        )
+        + "\n"
+        + fitted_tables(header, rows, keep=1)
         + f"\nby LiDAR mae: {', '.join(ranking)}"
     )
 
@@ -246,8 +266,11 @@ def gt_free_text(summary: RunSummary) -> str:
     ]
     agreement = gt_free_agreement(summary)
     return (
-        "ground-truth-free measures beside the GT ones (vpe in grey levels, from the left and "
-        "right images only; criterion all, summed over the common frames), by vpe:\n"
+        wrapped(
+            "ground-truth-free measures beside the GT ones (vpe in grey levels, from the left and "
+            "right images only; criterion all, summed over the common frames), by vpe:"
+        )
+        + "\n"
         + table(header, rows)
         + "\nagreement with the GT ranking (Kendall τ over the methods): "
         + ", ".join(f"vpe vs {name} {agreement[f'tau_vpe_{name}']:+.2f}" for name in AGREEMENT_GT)

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dispeval_ros.cli.output import print_json
+from dispeval_ros.cli.output import plural, print_json, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError, InputError
 
@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     first = next(frames, None)
     if first is None:
         raise InputError(f"{args.scene}: no frame to write")
-    progress = Progress("dispeval make-bag", enabled=not args.json)
+    progress = Progress("dispeval make-bag: writing", enabled=not args.json, unit="frames")
     try:
         summary = write_bag(
             args.output,
@@ -138,20 +138,24 @@ def run(args: argparse.Namespace) -> int:
     else:
         methods = summary["methods"]
         assert isinstance(methods, dict)
-        print(f"wrote {summary['frames']} frames to {args.output} ({args.storage})")
-        print(f"ground truth: {_ground_truth(summary)}")
-        print("methods: " + ", ".join(f"{k}={v}" for k, v in methods.items()))
+        count = summary["frames"]
+        assert isinstance(count, int)
+        print(f"wrote {plural(count, 'frame')} to {args.output} ({args.storage})")
+        print(wrapped(f"ground truth: {_ground_truth(summary)}"))
+        print(wrapped("methods: " + ", ".join(f"{k}={v}" for k, v in methods.items())))
         if "gt_cloud" in summary:
             motion = (
                 f"; ego-motion on {summary['tf']} (odom → base_link)" if "tf" in summary else ""
             )
-            print(f"LiDAR: {summary['gt_cloud']} with {summary['tf_static']}{motion}")
+            print(wrapped(f"LiDAR: {summary['gt_cloud']} with {summary['tf_static']}{motion}"))
             offset = summary["cloud_offset_ms"]
             assert isinstance(offset, float)
             if offset > 0:
                 print(
-                    f"the scans are stamped up to {offset:.2f} ms from the left images: give "
-                    f"dispeval bag --tolerance {math.ceil(offset)} (ms) or more"
+                    wrapped(
+                        f"the scans are stamped up to {offset:.2f} ms from the left images: give "
+                        f"dispeval bag --tolerance {math.ceil(offset)} (ms) or more"
+                    )
                 )
     return 0
 

@@ -11,27 +11,37 @@ class Progress:
     """``[#####.....] 12/40 slices  345 frames  210.3 frames/s``, redrawn in place on a terminal.
 
     A slice is the unit of work: a few seconds of one recording, scored and stored together.
+    With ``unit="frames"`` (work counted in frames, as ``make-bag`` writes them) the line reads
+    ``[#####.....] 12/40 frames  3.3 frames/s``.
 
     When stderr is not a terminal (CI logs), it prints a plain line about every 10 %.
     """
 
-    def __init__(self, label: str, enabled: bool = True, stream: TextIO | None = None) -> None:
+    def __init__(
+        self,
+        label: str,
+        enabled: bool = True,
+        stream: TextIO | None = None,
+        unit: str = "slices",
+    ) -> None:
         self.label = label
         self.stream = stream or sys.stderr
         self.enabled = enabled
+        self.unit = unit
         self.started = time.perf_counter()
         self._last_decile = -1
         self._tty = self.stream.isatty()
 
     def update(self, done: int, total: int, frames: int) -> None:
-        """Show ``done`` of ``total`` slices and the frame rate so far."""
+        """Show ``done`` of ``total`` units of work and the frame rate so far."""
         if not self.enabled or total <= 0:
             return
         elapsed = max(time.perf_counter() - self.started, 1e-9)
         share = done / total
+        counted = "" if self.unit == "frames" else f"{frames} frames  "
         text = (
-            f"{self.label} [{'#' * int(share * 24):<24}] {done}/{total} slices  "
-            f"{frames} frames  {frames / elapsed:.1f} frames/s"
+            f"{self.label} [{'#' * int(share * 24):<24}] {done}/{total} {self.unit}  "
+            f"{counted}{frames / elapsed:.1f} frames/s"
         )
         if self._tty:
             self.stream.write("\r" + text)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from dispeval_ros.cli.output import table
+from dispeval_ros.cli.output import plural, table, text_width, wrapped
 from dispeval_ros.core import ModelResult
-from dispeval_ros.core.measures import GT_FREE_PREFIX, applies, measure_unit
+from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
+from dispeval_ros.core.objectives import has_points
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 GT_FREE_LABEL = "  (ground-truth-free: from the left and right images, no GT)"
@@ -23,11 +23,11 @@ def measure_header(name: str, relative: bool = False) -> str:
 def fitted_tables(
     header: Sequence[str], rows: Sequence[Sequence[object]], keep: int, width: int | None = None
 ) -> str:
-    """``table``, split by columns into several tables no wider than the terminal.
+    """``table``, split by columns into several tables no wider than :func:`text_width`.
 
     The first ``keep`` columns (method, n) are repeated in every part.
     """
-    limit = width or max(80, shutil.get_terminal_size((100, 24)).columns)
+    limit = width or text_width()
     parts: list[str] = []
     start = keep
     while start < len(header) or not parts:
@@ -44,6 +44,29 @@ def fitted_tables(
     return "\n\n".join(parts)
 
 
+def empty_note(scores: Mapping[str, ScoreTable], criterion: str) -> str:
+    """Below the table of a criterion without points: why, and that it is no objective."""
+    if not scores or has_points(scores, criterion):
+        return ""
+    from dispeval_ros.core.criteria.empty import empty_reason  # loads the kernels: only here
+
+    name = criterion.removeprefix(GT_FREE_PREFIX)
+    return "\n" + wrapped(f"{name}: no point — {empty_reason(criterion)}; not an objective")
+
+
+def _criterion_block(
+    title: str, scores: Mapping[str, ScoreTable], criterion: str, shown: Sequence[str], rel: bool
+) -> str:
+    header = ["method", "n", *(measure_header(m, rel) for m in shown)]
+    rows = [
+        [method, int(values[criterion]["n"]), *(values[criterion][m] for m in shown)]
+        for method, values in scores.items()
+    ]
+    return (
+        wrapped(title) + "\n" + fitted_tables(header, rows, keep=2) + empty_note(scores, criterion)
+    )
+
+
 def scores_text(
     scores: Mapping[str, ScoreTable],
     measures: Sequence[str],
@@ -53,25 +76,55 @@ def scores_text(
     """One table per criterion (split to the terminal's width): a row per method.
 
     A criterion shows the measures defined on it: ground-truth-free criteria (``gtfree:``)
-    the GT-free measures and density, the others the GT measures.
+    the GT-free measures and density, the others the GT measures. A criterion without points
+    says why (:func:`empty_note`).
     """
     blocks = []
     methods = list(scores)
     criteria = list(scores[methods[0]]) if methods else []
     for criterion in criteria:
         shown = [m for m in measures if applies(m, criterion)]
-        header = ["method", "n", *(measure_header(m, relative) for m in shown)]
-        rows = []
-        for method in methods:
-            values = scores[method][criterion]
-            rows.append([method, int(values["n"]), *(values[m] for m in shown)])
         title = f"criterion: {criterion}"
         if criterion in overlapping:
             title += "  (legacy Middlebury criterion: overlaps the others)"
         if criterion.startswith(GT_FREE_PREFIX):
             title += GT_FREE_LABEL
-        blocks.append(title + "\n" + fitted_tables(header, rows, keep=2))
+        blocks.append(_criterion_block(title, scores, criterion, shown, relative))
     return "\n\n".join(blocks)
+
+
+def _frame_names(objectives: Sequence[str]) -> tuple[list[str], int]:
+    """Objective names with frames as ``fNN`` instead of stamps, and how many were renamed.
+
+    A per-frame objective is ``criterion/measure @sequence:stamp`` (the stamp in ns, as the
+    exports keep it); ``fNN`` counts the frames of its sequence from ``f00``, in stamp order.
+    """
+    stamps: dict[str, set[int]] = {}
+    parsed = []
+    for name in objectives:
+        head, at, where = name.rpartition(" @")
+        sequence, colon, stamp = where.rpartition(":")
+        if at and colon and stamp.isdigit():
+            stamps.setdefault(sequence, set()).add(int(stamp))
+            parsed.append((head, sequence, stamp))
+        else:
+            parsed.append((name, "", ""))
+    frames = {
+        sequence: {str(s): i for i, s in enumerate(sorted(seen))}
+        for sequence, seen in stamps.items()
+    }
+    short = []
+    for (head, sequence, stamp), name in zip(parsed, objectives, strict=True):
+        if not stamp:
+            short.append(name)
+            continue
+        digits = max(2, len(str(len(frames[sequence]) - 1)))
+        short.append(f"{head} @{sequence}:f{frames[sequence][stamp]:0{digits}d}")
+    return short, sum(1 for p in parsed if p[2])
+
+
+_KEEP = "\u00a0"
+"""Stands for a space textwrap must not break at (it breaks at ASCII whitespace only)."""
 
 
 def models_text(result: ModelResult, objectives: Sequence[str]) -> str:
@@ -90,19 +143,32 @@ def models_text(result: ModelResult, objectives: Sequence[str]) -> str:
             ]
         )
     header = ["method", "A* group", "u1", "u2", "reduced", "avg rank"]
-    shown = ", ".join(objectives[:6]) + (
-        f", … ({len(objectives)} in all)" if len(objectives) > 6 else ""
+    names, framed = _frame_names(objectives)
+    shown = ", ".join(n.replace(" ", _KEEP) for n in names[:6])  # a name stays on one line
+    shown += f", … ({len(names)} in all)" if len(names) > 6 else ""
+    legend = (
+        "\nfNN: the frames every method delivered, from f00 in stamp order (the JSON and the "
+        "--export CSV name them by stamp)"
+        if framed
+        else ""
     )
     return (
-        f"A* Groups over {len(objectives)} objectives ({shown}), all minimised\n"
+        wrapped(
+            f"A* Groups over {plural(len(names), 'objective')} ({shown}), all minimised"
+        ).replace(_KEEP, " ")
+        + wrapped(legend)
+        + "\n"
         + table(header, rows)
         + "\n\n"
-        + result.interpretation
+        + wrapped(result.interpretation)
     )
 
 
-SEQUENCE_MEASURES = ("density", "bmp", "mae", "d1", "sze", "sze_mean", "bmpre", "vpe", "lrc")
-"""Shown per sequence: SZE is a sum (its size grows with the points); sze_mean is per point."""
+SEQUENCE_MEASURES = (
+    "density", "bmp", "mae", "d1", "sze", "sze_mean", "bmpre", "vpe", "lrc", *DEPTH_MEASURES
+)  # fmt: skip
+"""Shown per sequence: SZE is a sum (its size grows with the points); sze_mean is per point.
+The depth-domain measures (LiDAR runs) where they were computed."""
 
 
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
@@ -110,7 +176,8 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     parts = []
     for sequence in summary.sequences:
         parts.append(
-            f"\n=== sequence {sequence.sequence}: {sequence.common_frames} frames with every method"
+            f"\n=== sequence {sequence.sequence}: {plural(sequence.common_frames, 'frame')} with "
+            "every method"
         )
         parts.append(
             table(
@@ -126,16 +193,12 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
             for criterion in first.criteria:
                 shown = [m for m in measures if applies(m, criterion)]
-                header = ["method", "n", *(measure_header(m, first.relative) for m in shown)]
-                rows = [
-                    [m, int(s[criterion]["n"]), *(s[criterion][x] for x in shown)]
-                    for m, s in sequence.scores.items()
-                ]
-                parts.append(
-                    f"\ncriterion: {criterion} (summed over the common frames)"
-                    + (GT_FREE_LABEL if criterion.startswith(GT_FREE_PREFIX) else "")
+                title = f"\ncriterion: {criterion} (summed over the common frames)" + (
+                    GT_FREE_LABEL if criterion.startswith(GT_FREE_PREFIX) else ""
                 )
-                parts.append(fitted_tables(header, rows, keep=2))
+                parts.append(
+                    _criterion_block(title, sequence.scores, criterion, shown, first.relative)
+                )
         if sequence.models is not None:
             parts.append("\n" + models_text(sequence.models, sequence.objectives))
     if summary.overall is not None:
@@ -143,6 +206,9 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         parts.append(models_text(summary.overall, summary.overall_objectives))
     if problems:
         parts.append(
-            f"\n{len(problems)} problem(s) recorded (table 'problems'); first: {problems[0].message}"
+            wrapped(
+                f"\n{len(problems)} problem(s) recorded (table 'problems'); "
+                f"first: {problems[0].message}"
+            )
         )
     return "\n".join(parts)

@@ -38,6 +38,16 @@ def default_objective_measures(scored: Sequence[str]) -> list[str]:
     return [GT_FREE_OBJECTIVE] if GT_FREE_OBJECTIVE in scored else list(scored)
 
 
+def has_points(scores: Mapping[str, ScoreTable], criterion: str) -> bool:
+    """Whether ``criterion`` holds a point for some method (``n`` > 0).
+
+    A criterion without points (``boundary`` of KITTI's GT, which has no disparity jump) has
+    no defined score: its ratios are undefined and its sums 0 for every method. It is never
+    an objective (it would only add a column that cannot tell methods apart).
+    """
+    return any(float(table[criterion]["n"]) > 0 for table in scores.values() if criterion in table)
+
+
 def objective_matrix(
     scores: Mapping[str, ScoreTable],
     measures: Sequence[str],
@@ -46,13 +56,14 @@ def objective_matrix(
     """Methods, objective names (``criterion/measure``) and the matrix, all minimised.
 
     ``scores`` maps method → criterion → measure → value. ``criteria`` defaults to those of
-    the first method. Higher-is-better measures (density) are negated so that every
-    objective is minimised.
+    the first method; criteria without points (:func:`has_points`) are left out. Higher-is-
+    better measures (density) are negated so that every objective is minimised.
     """
     methods = list(scores)
     if not methods:
         raise ConfigurationError("no method to compare")
-    chosen = list(criteria) if criteria is not None else list(scores[methods[0]])
+    named = list(criteria) if criteria is not None else list(scores[methods[0]])
+    chosen = [c for c in named if has_points(scores, c)]
     names = [f"{criterion}/{measure}" for criterion in chosen for measure in measures]
     matrix = np.empty((len(methods), len(names)), dtype=np.float64)
     for row, method in enumerate(methods):

@@ -35,7 +35,7 @@ import numpy as np
 
 from dispeval_ros.core.measures import HIGHER_IS_BETTER, SUM_FIELDS, applies, quantile_level
 from dispeval_ros.core.models import ModelResult, evaluate_models
-from dispeval_ros.core.objectives import default_objective_measures
+from dispeval_ros.core.objectives import default_objective_measures, has_points
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
@@ -199,8 +199,8 @@ def selection_objectives(
             ]
         for label, scores in parts:
             for criterion in criteria:
-                if not any(m in scores and criterion in scores[m] for m in methods):
-                    continue  # no such points there (e.g. no boundary in a frame)
+                if not has_points({m: scores[m] for m in methods if m in scores}, criterion):
+                    continue  # no such points there (e.g. no boundary in KITTI's GT): no objective
                 for measure in measures:
                     if not applies(measure, criterion):
                         continue  # GT measures on gtfree: criteria, vpe on GT ones: undefined

@@ -320,7 +320,7 @@ def test_demo_shows_robot_mode(tmp_path: Path, capsys: Any) -> None:
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
     text = capsys.readouterr().out
     assert "robot mode: the same frames against the simulated LiDAR" in text
-    assert "mae LiDAR" in text
+    assert "mae [px] LiDAR" in text
     with ResultsStore.open(tmp_path / "demo" / "robot") as store:
         (sequence,) = store.sequences()
         assert len(store.stamps(sequence)) == 25

@@ -9,7 +9,8 @@ overlapping legacy Middlebury criteria fit the same scheme.
 
 One module per concern: :mod:`.base` (the set record, valid points), :mod:`.visibility`
 (occlusion and boundary masks, ``legacy``), :mod:`.depth` (3-means thresholds, ranges),
-:mod:`.regions` (ROI labels, texture) and :mod:`.partition` (cells).
+:mod:`.regions` (ROI labels, texture) and :mod:`.partition` (cells);
+:mod:`.empty` says why a criterion can hold no point.
 """
 
 from dispeval_ros.core.criteria.base import (
@@ -29,6 +30,7 @@ from dispeval_ros.core.criteria.depth import (
     depth_set,
     kmeans_thresholds,
 )
+from dispeval_ros.core.criteria.empty import EMPTY_REASONS, empty_reason
 from dispeval_ros.core.criteria.partition import (
     STANDARD_SETS,
     Partition,
@@ -60,6 +62,7 @@ __all__ = [
     "BOUNDARY_MODES",
     "CRITERION_SETS",
     "DEPTH",
+    "EMPTY_REASONS",
     "LEGACY",
     "LIDAR_DEPTH_RANGES",
     "NOT_EVALUATED",
@@ -78,6 +81,7 @@ __all__ = [
     "build_partition",
     "depth_set",
     "discontinuities",
+    "empty_reason",
     "inside_mask",
     "is_sparse",
     "kmeans_thresholds",

@@ -58,6 +58,7 @@
     const criteria = indicesOf(selection.criteria, D.index.criterion);
     const measures = indicesOf(selection.measures, D.index.measure);
     const perFrame = selection.granularity === 'frame';
+    const points = D.fields.indexOf('n');
     const names = [];
     const columns = [];
     const common = {};
@@ -85,8 +86,8 @@
       totals[s] = seqTotals;
       if (!perFrame) {
         criteria.forEach(function (c, ci) {
-          // a criterion no chosen method has there (no such points) gives no objective
-          if (!seqTotals[c].some(function (t) { return t; })) return;
+          // a criterion without points there (objectives.has_points) gives no objective
+          if (!seqTotals[c].some(function (t) { return t && t[points] > 0; })) return;
           measures.forEach(function (q, qi) {
             if (!applies(c, q)) return;
             const recipe = D.measures[q];
@@ -104,7 +105,9 @@
         const label = ' @' + seqName + ':' + D.sequences[s].stamps[f - D.seqFrames[s].offset];
         criteria.forEach(function (c, ci) {
           const base = (f * D.C + c) * D.M;
-          if (!methods.some(function (m) { return D.present[base + m]; })) return;
+          if (!methods.some(function (m) {
+            return D.present[base + m] && field(points, base + m) > 0;
+          })) return;
           measures.forEach(function (q, qi) {
             if (!applies(c, q)) return;
             const recipe = D.measures[q];
