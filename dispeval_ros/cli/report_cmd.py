@@ -107,6 +107,10 @@ def run_command(args: argparse.Namespace) -> int:
                 args.thumbnails,
                 progress=lambda done: steps.say(f"error maps: frame {done}/{total} scored"),
             )
+            if thumbnails is None:
+                steps.say(
+                    "error maps: none (no frame found again; a run without ground truth has none)"
+                )
         steps.say("reading the results database")
         data = build_report_data(store, title=args.title, thumbnails=thumbnails)
         from dispeval_ros.report.html import write_report
