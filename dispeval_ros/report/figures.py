@@ -275,7 +275,13 @@ def parallel_figure(
     axes.set_ylabel("(f − min)/(max − min) in the group [no unit]")
     axes.set_title(f"u2 terms of A* group {group}", loc="left", fontsize=10)
     if len(rows) <= 15:
-        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0), title="method")
+        axes.legend(
+            fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.0, 1.0),
+            title="method",
+            title_fontsize=8,
+        )
     figure.savefig(path)
     return figure
 
