@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TextIO
 
 from dispeval_ros.errors import ConfigurationError
 
@@ -54,7 +55,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--title", help="report title (default: from the results folder)")
     parser.add_argument(
-        "--quiet", action="store_true", help="no progress lines on stderr (what is being done)"
+        "--quiet",
+        action="store_true",
+        help="no progress lines (on a terminal, stderr says what is being done and how long)",
     )
     parser.set_defaults(run=run_command)
 
@@ -66,21 +69,23 @@ def default_output(results: Path) -> Path:
 
 
 class _Steps:
-    """Progress lines on stderr: what the report is doing and how long it took.
+    """Progress lines on a terminal's stderr: what the report is doing and how long it took.
 
     The slow steps are silent otherwise: scoring frames again for the error maps (the first use
-    of the kernels after an install compiles them) and the first matplotlib import (it builds
-    its font cache).
+    of the kernels after an install compiles them: about 15 s) and the first matplotlib import
+    (it builds its font cache). Not written when stderr is no terminal (a log, a pipe): there a
+    refusal stays the one line it is.
     """
 
-    def __init__(self, quiet: bool) -> None:
-        self.quiet = quiet
+    def __init__(self, quiet: bool, stream: TextIO | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self.quiet = quiet or not self.stream.isatty()
         self.started = time.perf_counter()
 
     def say(self, text: str) -> None:
         if not self.quiet:
             elapsed = time.perf_counter() - self.started
-            print(f"report: [{elapsed:5.1f} s] {text}", file=sys.stderr, flush=True)
+            print(f"report: [{elapsed:5.1f} s] {text}", file=self.stream, flush=True)
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -247,23 +247,54 @@ def test_page_shows_the_reference_and_whole_bar_titles(
     page.close()
 
 
-def test_report_says_what_it_is_doing(lidar_run: tuple[Path, Path], tmp_path: Path) -> None:
+def _report_on_a_terminal(*args: str) -> tuple[int, str, str]:
+    """``dispeval report ARGS`` with stderr on a pseudo-terminal: code, stdout, stderr."""
+    import os
+    import pty
+
+    parent, child = pty.openpty()
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "dispeval_ros", "report", *args],
+            stdout=subprocess.PIPE, stderr=child, text=True, timeout=300, check=False,
+        )  # fmt: skip
+        os.close(child)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(parent, 65536)
+            except OSError:  # the terminal is closed once read empty (Linux: EIO)
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+    finally:
+        os.close(parent)
+    return done.returncode, done.stdout, b"".join(chunks).decode().replace("\r\n", "\n")
+
+
+def test_report_says_what_it_is_doing_on_a_terminal(
+    lidar_run: tuple[Path, Path], tmp_path: Path
+) -> None:
     bag, results = lidar_run
-    done = subprocess.run(
-        [sys.executable, "-m", "dispeval_ros", "report", str(results), "--bag", str(bag),
-         "--thumbnails", "2", "-o", str(tmp_path / "r.html"), "--png", str(tmp_path / "png")],
-        capture_output=True, text=True, timeout=300, check=False,
+    code, _, err = _report_on_a_terminal(
+        str(results), "--bag", str(bag), "--thumbnails", "2", "-o", str(tmp_path / "r.html"),
+        "--png", str(tmp_path / "png"),
     )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    lines = done.stderr.splitlines()
+    assert code == 0, err
+    lines = err.splitlines()
     assert any("error maps: scoring 2 frames again" in line for line in lines), lines
     assert any("error maps: frame 2/2 scored" in line for line in lines), lines
     assert any("figures: importing matplotlib" in line for line in lines), lines
     assert all(line.startswith("report: [") for line in lines), lines
-    quiet = subprocess.run(
-        [sys.executable, "-m", "dispeval_ros", "report", str(results), "--quiet",
-         "-o", str(tmp_path / "q.html")],
+    code, _, err = _report_on_a_terminal(str(results), "--quiet", "-o", str(tmp_path / "q.html"))
+    assert code == 0, err
+    assert err == ""
+    # not on a terminal (a log, a pipe): nothing, so that a refusal stays one line
+    piped = subprocess.run(
+        [sys.executable, "-m", "dispeval_ros", "report", str(results), "--bag", str(bag),
+         "--thumbnails", "1", "-o", str(tmp_path / "p.html")],
         capture_output=True, text=True, timeout=300, check=False,
     )  # fmt: skip
-    assert quiet.returncode == 0, quiet.stderr
-    assert quiet.stderr == ""
+    assert piped.returncode == 0, piped.stderr
+    assert piped.stderr == ""
