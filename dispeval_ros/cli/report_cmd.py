@@ -110,7 +110,7 @@ def run_command(args: argparse.Namespace) -> int:
                 store,
                 args.bag,
                 args.thumbnails,
-                progress=lambda done: steps.say(f"error maps: frame {done}/{total} scored"),
+                progress=lambda done: steps.say(f"error maps: frame {done}/{total} done"),
             )
             if thumbnails is None:
                 steps.say(

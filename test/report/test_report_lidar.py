@@ -284,7 +284,7 @@ def test_report_says_what_it_is_doing_on_a_terminal(
     assert code == 0, err
     lines = err.splitlines()
     assert any("error maps: scoring 2 frames again" in line for line in lines), lines
-    assert any("error maps: frame 2/2 scored" in line for line in lines), lines
+    assert any("error maps: frame 2/2 done" in line for line in lines), lines
     assert any("figures: importing matplotlib" in line for line in lines), lines
     assert all(line.startswith("report: [") for line in lines), lines
     code, _, err = _report_on_a_terminal(str(results), "--quiet", "-o", str(tmp_path / "q.html"))
