@@ -112,7 +112,7 @@ def run_command(args: argparse.Namespace) -> int:
                 args.thumbnails,
                 progress=lambda done: steps.say(f"error maps: frame {done}/{total} done"),
             )
-            if thumbnails is None:
+            if thumbnails is None and total:
                 steps.say(
                     "error maps: none (no frame found again; a run without ground truth has none)"
                 )

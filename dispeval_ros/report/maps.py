@@ -259,13 +259,21 @@ def _match_bags(store: ResultsStore, bags: Sequence[Path]) -> dict[str, Path]:
     return matched
 
 
+def _chosen_frames(
+    store: ResultsStore, matched: Mapping[str, Path], count: int
+) -> dict[str, list[int]]:
+    """Sequence → the stamps shown: ``count`` frames shared out, evenly spaced in each."""
+    order = [s for s in store.sequences() if s in matched]
+    shares = [count // len(order) + (i < count % len(order)) for i in range(len(order))]
+    chosen = {s: _spread(store.common_stamps(s), n) for s, n in zip(order, shares, strict=True)}
+    return {sequence: stamps for sequence, stamps in chosen.items() if stamps}
+
+
 def frames_to_show(store: ResultsStore, bags: Sequence[Path], count: int) -> int:
-    """How many frames :func:`error_thumbnails` will score (for a progress line)."""
+    """How many frames :func:`error_thumbnails` will look for (for a progress line)."""
     if count <= 0 or not bags:
         return 0
-    order = [s for s in store.sequences() if s in _match_bags(store, bags)]
-    shares = [count // len(order) + (i < count % len(order)) for i in range(len(order))]
-    return sum(len(_spread(store.common_stamps(s), n)) for s, n in zip(order, shares, strict=True))
+    return sum(map(len, _chosen_frames(store, _match_bags(store, bags), count).values()))
 
 
 def error_thumbnails(
@@ -295,18 +303,13 @@ def error_thumbnails(
     matched = _match_bags(store, bags)
     config = config or core_config_from_run(store.config())
     sparse = config.pointcloud
-    order = [s for s in store.sequences() if s in matched]
-    shares = [count // len(order) + (i < count % len(order)) for i in range(len(order))]
     margin = config.tolerance_ns + config.lateness_ns
     frames: list[dict[str, Any]] = []
     pending: list[tuple[dict[str, Any], list[tuple[str, SparseMap]], np.ndarray | None]] = []
     backgrounds: set[str] = set()
     done = 0
-    for sequence, share in zip(order, shares, strict=True):
+    for sequence, wanted in _chosen_frames(store, matched, count).items():
         all_stamps = store.stamps(sequence)
-        wanted = _spread(store.common_stamps(sequence), share)
-        if not wanted:
-            continue
         offset = store.sequence_info(sequence)[1].get("stamp_offset_ns", 0)
         offset = offset if isinstance(offset, int) else 0
         with BagSource(matched[sequence]) as source:
