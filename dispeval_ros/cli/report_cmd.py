@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 from pathlib import Path
+from typing import TextIO
 
 from dispeval_ros.errors import ConfigurationError
 
@@ -51,6 +54,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="frames with error-map thumbnails when --bag is given (default 4)",
     )
     parser.add_argument("--title", help="report title (default: from the results folder)")
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress lines (on a terminal, stderr says what is being done and how long)",
+    )
     parser.set_defaults(run=run_command)
 
 
@@ -60,23 +68,68 @@ def default_output(results: Path) -> Path:
     return folder / "report.html"
 
 
+class _Steps:
+    """Progress lines on a terminal's stderr: what the report is doing and how long it took.
+
+    The slow steps are silent otherwise: scoring frames again for the error maps (the first use
+    of the kernels after an install compiles them: about 15 s) and the first matplotlib import
+    (it builds its font cache). Not written when stderr is no terminal (a log, a pipe): there a
+    refusal stays the one line it is.
+    """
+
+    def __init__(self, quiet: bool, stream: TextIO | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self.quiet = quiet or not self.stream.isatty()
+        self.started = time.perf_counter()
+
+    def say(self, text: str) -> None:
+        if not self.quiet:
+            elapsed = time.perf_counter() - self.started
+            print(f"report: [{elapsed:5.1f} s] {text}", file=self.stream, flush=True)
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Read the database, make thumbnails and figures if asked, write the HTML."""
     from dispeval_ros.io.store import ResultsStore
-    from dispeval_ros.report.data import build_report_data, error_thumbnails
-    from dispeval_ros.report.html import write_report
+    from dispeval_ros.report.data import build_report_data
+    from dispeval_ros.report.maps import error_thumbnails, frames_to_show
 
     if args.thumbnails < 0:
         raise ConfigurationError(f"--thumbnails must be 0 or more, got {args.thumbnails}")
     out = args.out or default_output(args.results)
+    steps = _Steps(args.quiet)
     with ResultsStore.open(args.results) as store:
-        thumbnails = error_thumbnails(store, args.bag, args.thumbnails) if args.bag else None
+        thumbnails = None
+        if args.bag:
+            total = frames_to_show(store, args.bag, args.thumbnails)
+            steps.say(
+                f"error maps: scoring {total} frames again from {len(args.bag)} bag(s) (a first "
+                "run after an install compiles the scoring kernels first)"
+            )
+            thumbnails = error_thumbnails(
+                store,
+                args.bag,
+                args.thumbnails,
+                progress=lambda done: steps.say(f"error maps: frame {done}/{total} done"),
+            )
+            if thumbnails is None and total:
+                steps.say(
+                    "error maps: none (no frame found again; a run without ground truth has none)"
+                )
+        steps.say("reading the results database")
         data = build_report_data(store, title=args.title, thumbnails=thumbnails)
+        from dispeval_ros.report.html import write_report
+
         size = write_report(data, out)  # first: a problem with the figures keeps the page
         print(f"report: {out} ({size / 1e6:.1f} MB)")
         if args.png:
-            from dispeval_ros.report.figures import write_figures
+            from dispeval_ros.report.figures import FIGURES, write_figures
 
+            steps.say(
+                f"figures: importing matplotlib (its first use builds a font cache) and drawing "
+                f"{len(FIGURES)} figures"
+            )
             written = write_figures(store, args.png)
+            steps.say("figures: done")
             print(f"figures: {', '.join(str(path) for path in written)}")
     return 0

@@ -28,8 +28,7 @@ import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -39,22 +38,23 @@ from dispeval_ros.core.objectives import default_objective_measures, has_points
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.maps import (  # the thumbnails: also from here, their old home
+    DEFAULT_THUMBNAILS,  # noqa: F401
+    ERROR_RANGE_PX,  # noqa: F401
+    THUMBNAIL_WIDTH,  # noqa: F401
+    core_config_from_run,  # noqa: F401
+    error_thumbnails,  # noqa: F401
+)
 from dispeval_ros.report.recipes import (  # recipe_values: also from here, its old home
     measure_recipe,
     recipe_values,  # noqa: F401
 )
+from dispeval_ros.report.reference import reference_text
 from dispeval_ros.summary import GRANULARITIES
-
-if TYPE_CHECKING:
-    from dispeval_ros.stream.core import CoreConfig
 
 FORMAT_VERSION = 1
 MAX_PROBLEMS = 2000
 """Problems listed in the report (the total is always given)."""
-DEFAULT_THUMBNAILS = 4
-THUMBNAIL_WIDTH = 320
-ERROR_RANGE_PX = 4.0
-"""Error maps: turbo colour map from 0 to this many pixels (as ``colour_error``)."""
 
 _UINT_TYPES = (("u8", np.uint8, 2**8), ("u16", np.uint16, 2**16), ("u32", np.uint32, 2**32))
 _ITEMSIZE = {"u8": 1, "u16": 2, "u32": 4, "f64": 8, "zero": 0}
@@ -409,6 +409,7 @@ def build_report_data(
         "created": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "source": str(store.path),
         "config": json_safe(store.config()),
+        "reference": reference_text(store.config()),
         "policy": info["policy"],
         "thresholds": json_safe([float(t) for t in thresholds]),
         "fields": list(SUM_FIELDS),
@@ -435,144 +436,3 @@ def build_report_data(
         "defaults": {**defaults, "model": "astar"},
         "thumbnails": json_safe(thumbnails) if thumbnails else None,
     }
-
-
-# -- error-map thumbnails from the bags -----------------------------------------------------
-
-
-def core_config_from_run(config: Mapping[str, Any]) -> CoreConfig:
-    """The evaluation core's configuration from a run's stored configuration."""
-    from dispeval_ros.stream.core import CoreConfig
-
-    if not isinstance(config.get("methods"), Mapping) or not isinstance(
-        config.get("gt_topic"), str
-    ):
-        raise InputError(
-            "the results do not record the method and ground-truth topics, so the bag frames "
-            "cannot be scored again for thumbnails (use results written by 'dispeval bag')"
-        )
-    return CoreConfig.from_record(config)
-
-
-def _png_uri(rgb: np.ndarray, max_width: int) -> str:
-    import cv2
-
-    height, width = rgb.shape[:2]
-    if width > max_width:
-        size = (max_width, max(1, round(height * max_width / width)))
-        rgb = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
-    ok, encoded = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-    if not ok:  # pragma: no cover - OpenCV always encodes RGB8
-        raise InputError("cannot encode a thumbnail as PNG")
-    return "data:image/png;base64," + base64.b64encode(encoded.tobytes()).decode("ascii")
-
-
-def _legend_uri() -> str:
-    import cv2
-
-    ramp = np.tile(np.arange(256, dtype=np.uint8), (14, 1))
-    rgb = cv2.cvtColor(cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO), cv2.COLOR_BGR2RGB)
-    return _png_uri(rgb, 256)
-
-
-def _spread(stamps: Sequence[int], count: int) -> list[int]:
-    if count <= 0 or not stamps:
-        return []
-    if count >= len(stamps):
-        return list(stamps)
-    picks = np.linspace(0, len(stamps) - 1, count).round().astype(int)
-    return [stamps[i] for i in sorted(set(picks.tolist()))]
-
-
-def _match_bags(store: ResultsStore, bags: Sequence[Path]) -> dict[str, Path]:
-    from dispeval_ros.offline.bag_eval import sequence_names
-
-    sequences = store.sequences()
-    sources = {}
-    for sequence in sequences:
-        source, _ = store.sequence_info(sequence)
-        if source:
-            sources[Path(source).resolve()] = sequence
-    matched: dict[str, Path] = {}
-    for bag, name in zip(bags, sequence_names(list(bags)), strict=True):
-        found = sources.get(Path(bag).resolve()) or (name if name in sequences else None)
-        if found is None:
-            raise InputError(
-                f"{bag}: matches no sequence of the results (sequences: {', '.join(sequences)})"
-            )
-        matched[found] = Path(bag)
-    return matched
-
-
-def error_thumbnails(
-    store: ResultsStore,
-    bags: Sequence[Path],
-    count: int = DEFAULT_THUMBNAILS,
-    config: CoreConfig | None = None,
-    max_width: int = THUMBNAIL_WIDTH,
-) -> dict[str, Any] | None:
-    """Error-map thumbnails of ``count`` frames spread over the sequences of ``bags``.
-
-    The results database keeps no error maps, so the chosen frames (evenly spaced over each
-    sequence's common frames) are read from the bag again, joined and scored by
-    :class:`~dispeval_ros.stream.core.EvaluationCore` with ``error_images=True`` and rendered by
-    :func:`~dispeval_ros.stream.images.colour_error` (turbo, 0–4 px, criterion borders white).
-    A frame is looked for around its log time: its stamp moved by the sequence's
-    ``stamp_offset_ns`` (recorded by :func:`~dispeval_ros.offline.units.plan_bag`), within
-    twice the join's margin (a frame whose offset drifted further is not shown).
-    """
-    from dispeval_ros.io.bags import BagSource
-    from dispeval_ros.offline.units import push_static_transforms
-    from dispeval_ros.stream.core import EvaluationCore
-    from dispeval_ros.stream.images import colour_error
-
-    if count <= 0 or not bags:
-        return None
-    matched = _match_bags(store, bags)
-    config = config or core_config_from_run(store.config())
-    order = [s for s in store.sequences() if s in matched]
-    shares = [count // len(order) + (i < count % len(order)) for i in range(len(order))]
-    margin = config.tolerance_ns + config.lateness_ns
-    frames: list[dict[str, Any]] = []
-    for sequence, share in zip(order, shares, strict=True):
-        all_stamps = store.stamps(sequence)
-        wanted = _spread(store.common_stamps(sequence), share)
-        if not wanted:
-            continue
-        offset = store.sequence_info(sequence)[1].get("stamp_offset_ns", 0)
-        offset = offset if isinstance(offset, int) else 0
-        with BagSource(matched[sequence]) as source:
-            for stamp in wanted:
-                core = EvaluationCore(config, error_images=True)
-                push_static_transforms(source, core)
-                found = None
-                logged = stamp + offset
-                messages = source.messages(
-                    list(config.topics), logged - 2 * margin, logged + 2 * margin + 1
-                )
-                for topic, log_ns, msg in messages:
-                    for frame_set in core.push(topic, msg, log_ns):
-                        if frame_set.stamp == stamp and found is None:
-                            found = core.score(frame_set)
-                for frame_set in core.flush():
-                    if frame_set.stamp == stamp and found is None:
-                        found = core.score(frame_set)
-                if found is None or found.partition is None:
-                    continue
-                partition = found.partition
-                images = [
-                    [method, _png_uri(colour_error(error, partition, ERROR_RANGE_PX), max_width)]
-                    for method, error in found.errors.items()
-                ]
-                frames.append(
-                    {
-                        "sequence": sequence,
-                        "stamp": str(stamp),
-                        "first_stamp": str(all_stamps[0]),
-                        "index": all_stamps.index(stamp),
-                        "images": images,
-                    }
-                )
-    if not frames:
-        return None
-    return {"max_error": ERROR_RANGE_PX, "legend": _legend_uri(), "frames": frames}

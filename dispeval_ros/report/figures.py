@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from dispeval_ros.core.measures import measure_unit
 from dispeval_ros.core.models import ModelResult
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store import ResultsStore
@@ -28,6 +29,7 @@ from dispeval_ros.report.data import (
     evaluate_selection,
 )
 from dispeval_ros.report.recipes import measure_recipe, recipe_values
+from dispeval_ros.report.reference import reference_text
 
 FIGURES = ("group_table.png", "curves.png", "criteria_bars.png", "parallel_u2.png")
 MAX_CURVES = 24
@@ -39,6 +41,18 @@ def _figure(width: float, height: float) -> Any:
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), dpi=100, layout="constrained")
+
+
+def measure_label(measure: str, unit: str) -> str:
+    """An axis label of a measure with its unit (from the registry): ``sze [m]``."""
+    return f"{measure} [{unit}]" if unit else measure
+
+
+def _plain_numbers(axes: Any) -> None:
+    """Y tick labels as short numbers (``2.5e+06``), never a detached ``1e6`` offset text."""
+    from matplotlib.ticker import FuncFormatter
+
+    axes.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.3g}"))
 
 
 def _group_colour(group: int) -> str:
@@ -53,8 +67,13 @@ def _ordered_methods(models: ModelResult) -> list[str]:
     )
 
 
-def group_table_figure(models: ModelResult, objectives: Sequence[str], path: Path) -> None:
-    """The group table (sorted by group, then average rank) and the interpretation text."""
+def group_table_figure(
+    models: ModelResult, objectives: Sequence[str], path: Path, reference: str | None = None
+) -> Any:
+    """The group table (sorted by group, then average rank) and the interpretation text.
+
+    ``reference``: what the scores are measured against (:func:`reference_text`), under the title.
+    """
     rows = []
     for name in _ordered_methods(models):
         pair = models.reduction.get(name)
@@ -73,15 +92,16 @@ def group_table_figure(models: ModelResult, objectives: Sequence[str], path: Pat
         for line in models.interpretation.splitlines()
     )
     lines = text.count("\n") + 1
-    figure = _figure(10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines)
+    figure = _figure(10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines + (0.4 if reference else 0))
     table_axes, text_axes = figure.subplots(
         2, 1, gridspec_kw={"height_ratios": [len(rows) + 1, 0.8 * lines]}
     )
     table_axes.axis("off")
     text_axes.axis("off")
-    table_axes.set_title(
-        f"A* Groups over {len(objectives)} objectives (all minimised)", loc="left", fontsize=11
-    )
+    title = f"A* Groups over {len(objectives)} objectives (all minimised)"
+    if reference:
+        title += "\n" + textwrap.fill(reference, 120)
+    table_axes.set_title(title, loc="left", fontsize=11 if not reference else 9.5)
     table = table_axes.table(
         cellText=rows,
         colLabels=["method", "A* group", "u1", "u2", "reduced", "avg rank"],
@@ -97,6 +117,7 @@ def group_table_figure(models: ModelResult, objectives: Sequence[str], path: Pat
             cell.set_facecolor("#e6f5ea")
     text_axes.text(0.0, 1.0, text, fontsize=8.5, va="top", ha="left", transform=text_axes.transAxes)
     figure.savefig(path)
+    return figure
 
 
 def _outliers(values: np.ndarray, higher: bool) -> np.ndarray:
@@ -122,8 +143,14 @@ def curves_figure(
     higher: bool,
     path: Path,
     separators: Sequence[int] = (),
-) -> None:
-    """One small panel per method: its measure per frame; missing frames and outliers in red."""
+    unit: str = "",
+) -> Any:
+    """One small panel per method: its measure per frame; missing frames and outliers in red.
+
+    Frames are numbered from 1 and ticked at whole numbers only; ``unit`` labels the y axis.
+    """
+    from matplotlib.ticker import MaxNLocator
+
     shown = list(range(min(len(methods), MAX_CURVES)))
     figure = _figure(10.0, 0.9 + 0.75 * max(1, len(shown)))
     axes_list = figure.subplots(max(1, len(shown)), 1, sharex=True, squeeze=False)[:, 0]
@@ -143,17 +170,22 @@ def curves_figure(
         axes.set_ylim(0, top * 1.05 if top > 0 else 1.0)
         axes.set_ylabel(methods[index], rotation=0, ha="right", va="center", fontsize=8)
         axes.tick_params(labelsize=7)
+        axes.xaxis.set_major_locator(MaxNLocator(integer=True))
+        _plain_numbers(axes)
+    label = measure_label(measure, unit)
     axes_list[0].set_title(
-        f"{measure} of criterion {criterion} per frame (red: missing/failed frame, undefined "
+        f"{label} of criterion {criterion} per frame (red: missing/failed frame, undefined "
         "value or outlier)",
         loc="left",
         fontsize=10,
     )
+    figure.supylabel(label, fontsize=9)
     if len(methods) > len(shown):
         axes_list[-1].set_xlabel(f"frame (first {len(shown)} of {len(methods)} methods)")
     else:
         axes_list[-1].set_xlabel("frame")
     figure.savefig(path)
+    return figure
 
 
 def criteria_bars_figure(
@@ -163,7 +195,8 @@ def criteria_bars_figure(
     groups: Sequence[int],
     measure: str,
     path: Path,
-) -> None:
+    unit: str = "",
+) -> Any:
     """One bar panel per criterion: the measure of each method over the common frames."""
     columns = max(1, min(3, len(criteria)))
     rows = math.ceil(max(1, len(criteria)) / columns)
@@ -180,12 +213,16 @@ def criteria_bars_figure(
         else:
             axes.set_xticks([])
         axes.tick_params(axis="y", labelsize=7)
+        axes.set_ylabel(measure_label(measure, unit), fontsize=8)
+        _plain_numbers(axes)
     for axes in axes_grid[len(criteria) :]:
         axes.axis("off")
     figure.suptitle(
-        f"{measure} per criterion over the common frames (colour: A* group)", fontsize=10
+        f"{measure_label(measure, unit)} per criterion over the common frames (colour: A* group)",
+        fontsize=10,
     )
     figure.savefig(path)
+    return figure
 
 
 def normalised_terms(matrix: np.ndarray) -> np.ndarray:
@@ -210,7 +247,7 @@ def parallel_figure(
     models: ModelResult,
     group: int,
     path: Path,
-) -> None:
+) -> Any:
     """Parallel coordinates of the u2 terms of one group; the reduced set drawn thick."""
     rows = [i for i, name in enumerate(methods) if models.groups[name] == group]
     terms = normalised_terms(matrix[rows])
@@ -235,11 +272,18 @@ def parallel_figure(
     else:
         axes.set_xlabel(f"{len(objectives)} objectives")
     axes.set_ylim(-0.03, 1.03)
-    axes.set_ylabel("(f − min)/(max − min) in the group")
+    axes.set_ylabel("(f − min)/(max − min) in the group [no unit]")
     axes.set_title(f"u2 terms of A* group {group}", loc="left", fontsize=10)
     if len(rows) <= 15:
-        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        axes.legend(
+            fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.0, 1.0),
+            title="method",
+            title_fontsize=8,
+        )
     figure.savefig(path)
+    return figure
 
 
 def write_figures(
@@ -300,9 +344,11 @@ def write_figures(
     missing = ~present[np.ix_(frame_rows, [first], method_at)][:, 0, :].astype(bool)
     bar_values = recipe_values(recipe, totals)
     groups = [models.groups[m] for m in methods]
+    relative = any(info["relative"][all_methods.index(m)] for m in methods)
+    unit = measure_unit(measure, relative)
     paths = [directory / name for name in FIGURES]
     with matplotlib.rc_context({"text.parse_math": False, "text.usetex": False}):
-        group_table_figure(models, names, paths[0])
+        group_table_figure(models, names, paths[0], reference_text(store.config()))
         curves_figure(
             frame_values,
             missing,
@@ -312,7 +358,8 @@ def write_figures(
             bool(recipe["higher"]),
             paths[1],
             separators,
+            unit,
         )
-        criteria_bars_figure(bar_values, methods, criteria, groups, measure, paths[2])
+        criteria_bars_figure(bar_values, methods, criteria, groups, measure, paths[2], unit)
         parallel_figure(matrix, methods, names, models, group, paths[3])
     return paths

@@ -862,7 +862,7 @@ def test_browser_objectives_only_from_pairs_that_apply(browser: Any, tmp_path: P
         assert "red marks" not in note
         page.select_option("#plot-criterion", str(store.criteria().index("gtfree:all")))
         note = page.text_content("#curves-note") or ""
-        assert note.startswith("vpe of criterion gtfree:all")
+        assert note.startswith("vpe [grey levels] of criterion gtfree:all")  # unit: registry
         assert "0 red marks" in note
         # only GT measures on only gtfree: criteria: no objective, and the page says why
         toggle(("all", "interior"), "vpe")

@@ -32,23 +32,29 @@
         }
         return totals ? totalMeasure(recipe, totals) : NaN;
       });
-      ui.bars.appendChild(barChart(D.criteria[c].name + ' · ' + recipe.name +
-        (unit ? ' [' + unit + ']' : ''), built.methods, values, groups, reduced));
+      ui.bars.appendChild(barChart([D.criteria[c].name, recipe.name + (unit ? ' [' + unit + ']' : '')],
+        built.methods, values, groups, reduced));
     }
   }
 
-  function barChart(title, names, values, groups, reduced) {
+  // Title lines (criterion, then measure [unit]): the chart is made wide enough for them, so a
+  // chart of two methods no longer cuts its title ("occluded · sz").
+  function barChart(titles, names, values, groups, reduced) {
     const n = names.length;
     const bar = Math.max(4, Math.min(28, Math.floor(560 / Math.max(1, n))));
-    const left = 64, bottom = n <= 30 ? 90 : 16, top = 22;
+    const left = 64, bottom = n <= 30 ? 90 : 16, top = 10 + 16 * titles.length;
     const plotHeight = 150;
-    const width = left + n * bar + 10, height = top + plotHeight + bottom;
+    const longest = titles.reduce(function (a, t) { return Math.max(a, t.length); }, 0);
+    const width = Math.max(left + n * bar + 10, Math.ceil(longest * TITLE_CHAR_PX) + 12);
+    const height = top + plotHeight + bottom;
     let ymax = 0;
     for (const v of values) if (isFinite(v) && Math.abs(v) > ymax) ymax = Math.abs(v);
     if (!(ymax > 0)) ymax = 1;
     const root = svg('svg', { width: width, height: height, viewBox: '0 0 ' + width + ' ' + height,
       class: 'bar-chart' });
-    root.appendChild(svg('text', { x: left, y: 14, class: 'chart-title' }, title));
+    titles.forEach(function (t, i) {
+      root.appendChild(svg('text', { x: 4, y: 14 + 16 * i, class: i ? 'chart-subtitle' : 'chart-title' }, t));
+    });
     root.appendChild(svg('line', { x1: left - 2, y1: top, x2: left - 2, y2: top + plotHeight, class: 'axis' }));
     root.appendChild(svg('line', { x1: left - 2, y1: top + plotHeight, x2: width - 8, y2: top + plotHeight, class: 'axis' }));
     root.appendChild(svg('text', { x: left - 6, y: top + 4, class: 'tick', 'text-anchor': 'end' }, short(ymax)));

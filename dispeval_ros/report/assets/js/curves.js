@@ -70,8 +70,10 @@
         'gtfree: one): nothing to plot; choose another measure or criterion.';
       return;
     }
-    ui.curvesNote.textContent = recipe.name + ' of criterion ' + D.criteria[c].name + ' on ' +
-      frames.length + ' selected frames; common scale 0 – ' + fmt(ymax) +
+    const unit = unitOf(recipe, methods);
+    ui.curvesNote.textContent = recipe.name + (unit ? ' [' + unit + ']' : '') + ' of criterion ' +
+      D.criteria[c].name + ' on ' + frames.length + ' selected frames (x: frame number); ' +
+      'common scale 0 – ' + fmt(ymax) + (unit ? ' ' + unit : '') +
       ' (outliers drawn at the top); ' + failures + ' red marks.' +
       (recipe.kind === 'stored' ? '' : ' Values from the stored sums.');
   }
@@ -150,13 +152,23 @@
     }
     ctx.fillStyle = '#555';
     ctx.textBaseline = 'top';
-    const ticks = Math.min(n, 8);
-    for (let t = 0; t < ticks; t++) {
-      const x = ticks === 1 ? 0 : Math.round((t / (ticks - 1)) * (n - 1));
-      const f = cs.frames[x];
-      const s = D.seqOf[f];
-      ctx.fillText(String(f - D.seqFrames[s].offset + 1), Math.min(xOf(x), width - 30), height - bottom + 4);
+    const labels = cs.frames.map(function (f) { return f - D.seqFrames[D.seqOf[f]].offset + 1; });
+    for (const x of frameTicks(labels)) {
+      ctx.fillText(String(labels[x]), Math.min(xOf(x), width - 30), height - bottom + 4);
     }
+  }
+
+  // Frame-number ticks: whole frame numbers at a round step (1, 2, 5, 10, 20, …; about 8 at
+  // most), and the first frame; never a fraction of a frame.
+  function frameTicks(labels) {
+    const n = labels.length;
+    let step = 1;
+    for (let k = 0; n / step > 8; k++) step = [2, 5, 10][k % 3] * Math.pow(10, Math.floor(k / 3));
+    const ticks = n ? [0] : [];
+    for (let x = 1; x < n; x++) {
+      if (labels[x] % step === 0 && x - ticks[ticks.length - 1] >= step / 2) ticks.push(x);
+    }
+    return ticks;
   }
 
   function hoverCurves(event) {
@@ -185,7 +197,7 @@
     ui.tooltip.textContent = D.methods[cs.methods[row]] + ' · ' + D.sequences[s].name +
       ' frame ' + (local + 1) + ' (' + stampText(D.sequences[s].stamps, local) + ') · ' +
       cs.recipe.name + ' = ' + fmt(series.values[at]) +
-      (cs.recipe.unit ? ' ' + cs.recipe.unit : '') + status;
+      (unitOf(cs.recipe, cs.methods) ? ' ' + unitOf(cs.recipe, cs.methods) : '') + status;
     ui.tooltip.hidden = false;
     ui.tooltip.style.left = Math.min(x + 12, rect.width - 260) + 'px';
     ui.tooltip.style.top = (y + 12) + 'px';

@@ -12,6 +12,8 @@
         ' sequence(s), ' + frames + ' frames, ' + methods + ' methods, ' + D.C +
         ' criteria · missing estimates: ' + (raw.policy || '?') + ' · made ' + raw.created }),
     ]);
+    // what the scores are measured against (a projected LiDAR scan, images without GT, …)
+    if (raw.reference) header.appendChild(el('p', { id: 'reference', text: raw.reference }));
     ui.status = el('p', { id: 'status', className: 'status' });
     ui.warnings = el('div', { id: 'warnings' });
     ui.interpretation = el('pre', { id: 'interpretation' });

@@ -17,4 +17,5 @@
   const LINE_COLOURS = ['#1f77b4', '#ff7f0e', '#2ca02c', '#d62728', '#9467bd', '#8c564b',
     '#e377c2', '#7f7f7f', '#bcbd22', '#17becf'];
   const FAIL = '#d62728';
+  const TITLE_CHAR_PX = 8;  // a generous width of one character of a chart title (13 px bold)
 

@@ -14,7 +14,8 @@
     }
     const legend = el('div', { className: 'thumb-legend' }, [
       el('span', { text: 'error 0 px' }), safeImage(thumbs.legend, 'colour scale'),
-      el('span', { text: '≥ ' + thumbs.max_error + ' px; black: not evaluated; white lines: criterion borders' }),
+      el('span', { text: '≥ ' + thumbs.max_error + ' px; ' + (thumbs.note ||
+        'black: not evaluated; white lines: criterion borders') }),
     ]);
     ui.thumbs.appendChild(legend);
     const selected = new Set(Array.from(state.methods).map(function (m) { return D.methods[m]; }));
