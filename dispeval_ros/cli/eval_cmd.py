@@ -186,6 +186,8 @@ def _provenance(
         "estimates": list(args.est),
         "camera": _camera_dict(scored[0].frame.camera),
     }
+    if args.gt is not None:
+        configuration["gt"] = str(args.gt)
     if args.scene is not None:
         configuration["scene"] = str(args.scene)
         configuration["gt_source"] = args.gt_source or "auto"

@@ -4,7 +4,8 @@ The report's header and the PNG figures say it, so a reader of a LiDAR run knows
 ground truth is a scan projected into the left camera (sparse points), and a reader of a
 ground-truth-free run what stands in for the ground truth. Read from the configuration record
 :meth:`~dispeval_ros.stream.config.CoreConfig.as_record` stores (``gt_kind``, ``gt_topic``,
-``images``, ``extrinsic``, ``cloud_filter``); results that record none say nothing.
+``images``, ``extrinsic``, ``cloud_filter``; ``eval --out``: ``gt`` or ``scene`` and its
+``frames``); results that record none say nothing.
 """
 
 from __future__ import annotations
@@ -39,8 +40,25 @@ def _gt_free_text(left: str, right: str) -> str:
     )
 
 
+def _eval_text(config: Mapping[str, Any]) -> str | None:
+    """An ``eval --out`` run: the GT file, or the scene and the GT sources of its frames."""
+    if isinstance(config.get("gt"), str):
+        return f"ground truth: disparity file {config['gt']}"
+    if not isinstance(config.get("scene"), str):
+        return None
+    frames = config.get("frames")
+    listed = frames if isinstance(frames, list) else []
+    sources = sorted(
+        {str(f["gt_source"]) for f in listed if isinstance(f, dict) and f.get("gt_source")}
+    )
+    said = " and ".join(GT_SOURCE_TEXT.get(s, s) + "s" for s in sources)
+    return f"ground truth: scene {config['scene']}" + (f" ({said})" if said else "")
+
+
 def reference_text(config: Mapping[str, Any]) -> str | None:
     """One sentence naming the reference of the run's scores, or None when not recorded."""
+    if config.get("command") == "eval":
+        return _eval_text(config)
     kind, topic = config.get("gt_kind"), config.get("gt_topic")
     images = _images(config)
     if kind == "none":

@@ -103,7 +103,9 @@ def test_the_folder_is_a_bag_run_folder_that_models_and_report_read(
     assert main(["models", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == sequence["models"]
     assert main(["report", str(out)]) == 0
-    assert (out / "report.html").stat().st_size > 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    # the header says what the scores are measured against (the scene's official maps)
+    assert f"ground truth: scene {shared_data / SCENE} (official GT maps)" in page
 
 
 def test_a_single_frame_folder_gives_the_models_eval_prints(
