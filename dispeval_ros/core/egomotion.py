@@ -96,8 +96,6 @@ class EgoMotionOptions:
     photometric_threshold: float = 16.0
     thresholds: tuple[float, ...] = DEFAULT_BAD_THRESHOLDS
     fit_offset: bool = True
-    fit_inlier: float = 3.0
-    """Pixels with a residual above this (px) take no part in the offset fit."""
 
     def __post_init__(self) -> None:
         for name in ("border", "occlusion_tolerance", "edge_gap", "photometric_threshold"):
@@ -108,11 +106,8 @@ class EgoMotionOptions:
             raise ConfigurationError(
                 f"ego-motion edge_width must be a whole number of px ≥ 1, got {self.edge_width!r}"
             )
-        if not (self.fit_inlier > 0 and all(t >= 0 for t in self.thresholds)):
-            raise ConfigurationError(
-                "ego-motion fit_inlier must be > 0 and the thresholds ≥ 0, got "
-                f"{self.fit_inlier!r} and {self.thresholds!r}"
-            )
+        if not all(t >= 0 for t in self.thresholds):
+            raise ConfigurationError(f"ego-motion thresholds must be ≥ 0, got {self.thresholds!r}")
 
 
 @dataclass(frozen=True)
@@ -358,12 +353,10 @@ def egomotion_residual(
         )
         return sums
 
-    sums = run(0.0)
     offset = 0.0
     if chosen.fit_offset:
-        offset = _fit_offset(source.disparity, target.disparity, rt, geo, status, chosen)
-        if offset != 0.0:
-            sums = run(offset)
+        offset = _fit_offset(source, (target.disparity, target.edges), images, rt, geo, chosen)
+    sums = run(offset)
     kept = tuple(m.copy() for m in maps) if keep_maps else ()
     return TemporalSums(
         "egomotion",
@@ -375,56 +368,59 @@ def egomotion_residual(
     )
 
 
-FIT_STRIDE = 4
-"""The offset is fitted on every 4th pixel of every 4th row: a constant offset needs few."""
-FIT_ROUNDS = 3
-FIT_ITERATIONS = 8
-FIT_TOLERANCE = 1e-9
-"""Gauss-Newton stops when the offset changes by less than this (px)."""
-FIT_FLOOR = 0.01
-"""The inlier bound never shrinks below this (px): the true disparity's residual is ~1e-6."""
+FIT_STRIDE = 6
+"""The offset is fitted on every 6th pixel of every 6th row: one constant needs few pixels."""
+FIT_ITERATIONS = 4
+FIT_TOLERANCE = 1e-6
+"""The fit stops when the offset changes by less than this (px)."""
 FIT_MINIMUM = 16
-OBSERVABLE = 1e-6
-"""The offset is left at 0 when the mean ``J²`` of the fit is below this: the motion (a static
-camera, a sideways one) hardly changes the residual with the offset, which then cancels."""
+FIT_FLOOR = 0.01
+"""The inlier bound of the fit never shrinks below this (px): exact estimates have r ≈ 1e-6."""
+OBSERVABLE = 1e-3
+"""The offset is left at 0 when the mean ``|dr/db|`` is below this: the motion (a static
+camera, a sideways one) hardly changes the depths, and a constant offset then cancels."""
 
 
 def _fit_offset(
-    source: np.ndarray,
-    target: np.ndarray,
+    source: MotionFrame,
+    target: tuple[np.ndarray, np.ndarray],
+    images: tuple[np.ndarray, np.ndarray],
     rt: np.ndarray,
     geo: np.ndarray,
-    status: np.ndarray,
     options: EgoMotionOptions,
 ) -> float:
-    """The disparity offset that minimises the squared residuals of the inliers counted at 0.
+    """The disparity offset that minimises the sum of absolute residuals.
 
-    Rounds of Gauss-Newton at a fixed inlier bound; after each, the bound becomes three robust
-    standard deviations (1.4826 · MAD) of the residuals, within ``[FIT_FLOOR, fit_inlier]``, so
-    moving pixels the photometric check missed do not pull the offset.
+    On a sparse grid of pixels (:data:`FIT_STRIDE`) passing the masks that need no z-buffer;
+    each step solves the linearised problem exactly (:func:`~.kernels.motion.l1_step`). The
+    absolute value lets moving pixels the photometric check missed and hidden points pass
+    without pulling the offset; squares would also trade noise against it (the offset changes
+    how much the depth amplifies the noise). Under a constant bias every static pixel's
+    residual is 0 at the bias: the fit finds it exactly.
     """
-    height, width = source.shape
-    residuals = np.empty(-(-height // FIT_STRIDE) * -(-width // FIT_STRIDE), np.float64)
-    inlier = options.fit_inlier
+    samples = km.fit_samples(source.disparity, source.edges, FIT_STRIDE)
+    out = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
     offset = 0.0
-    for _ in range(FIT_ROUNDS):
-        written = 0
-        for _ in range(FIT_ITERATIONS):
-            jr, jj, n, written = km.offset_terms(
-                source, target, rt, geo, offset, status, inlier, FIT_STRIDE, residuals
-            )
-            if n < FIT_MINIMUM or jj < OBSERVABLE * n:
-                return offset
-            step = jr / jj
-            offset -= step
-            if abs(step) < FIT_TOLERANCE:
-                break
-        sample = residuals[:written]
-        spread = 1.4826 * float(np.median(np.abs(sample - np.median(sample))))
-        bound = min(options.fit_inlier, max(FIT_FLOOR, 3.0 * spread))
-        if bound >= inlier:
+    for _ in range(FIT_ITERATIONS):
+        written = km.offset_residuals(
+            source.disparity,
+            target,
+            images,
+            samples,
+            rt,
+            geo,
+            offset,
+            options.photometric_threshold,
+            out,
+        )
+        if written < FIT_MINIMUM:
             break
-        inlier = bound
+        step, observability = km.l1_step(out[0][:written], out[1][:written], FIT_FLOOR)
+        if not observability >= OBSERVABLE:
+            break
+        offset += step
+        if abs(step) < FIT_TOLERANCE:
+            break
     return float(offset)
 
 

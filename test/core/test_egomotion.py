@@ -284,7 +284,8 @@ def test_the_kernels_agree_with_plain_numpy_on_the_drive():
     )
     np.testing.assert_array_equal(result.maps[0], status)
     np.testing.assert_allclose(result.maps[1], residual, rtol=1e-6, atol=1e-6, equal_nan=True)
-    np.testing.assert_allclose(result.sums, partition.membership @ sums, rtol=1e-9, atol=1e-6)
+    # the kernels sum the float32 residual maps: float32 rounding, no more
+    np.testing.assert_allclose(result.sums, partition.membership @ sums, rtol=1e-6, atol=1e-6)
     assert set(np.unique(status)) == set(range(7))  # every mask took part
 
 

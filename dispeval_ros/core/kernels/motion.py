@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dispeval_ros.core.kernels._jit import njit
+from dispeval_ros.core.kernels._jit import _FAST, njit
 
 # Status of a source pixel, in the order the masks are tried (the first that applies wins).
 COUNTED, MISSING, BORDER, HIDDEN, MISSING_TARGET, EDGE, MOVING = range(7)
@@ -113,11 +113,11 @@ def motion_splat(
             value = np.float32(predicted[x])
             x0 = min(int(xs[x]), width - 2)
             y0 = min(int(ys[x]), height - 2)
-            if photo:
+            if photo:  # branch-free: whether a point moved is not predictable
                 seen = _bilinear(tgt_image, x0, y0, xs[x] - x0, ys[x] - y0)
-                if abs(np.float64(src_image[y, x]) - seen) > photometric:
-                    moving[y, x] = True
-                    continue
+                flag = abs(np.float64(src_image[y, x]) - seen) > photometric
+                moving[y, x] = flag
+                value = np.float32(-np.inf) if flag else value
             zbuffer[y0, x0] = max(zbuffer[y0, x0], value)
             zbuffer[y0, x0 + 1] = max(zbuffer[y0, x0 + 1], value)
             zbuffer[y0 + 1, x0] = max(zbuffer[y0 + 1, x0], value)
@@ -158,60 +158,123 @@ def motion_classify(
     for y in range(height):
         row = src[y]
         _row_geometry(row, y, rt, geo, offset, box, scratch)
-        for x in range(width):
-            status = COUNTED
-            r = np.nan
-            rz = np.nan
-            if not np.float64(row[x]) - offset + doffs > 0.0:
-                status = MISSING
-            elif not lands[x]:
-                status = BORDER
-            else:
-                xp = xs[x]
-                yp = ys[x]
-                x0 = min(int(xp), width - 2)
-                y0 = min(int(yp), height - 2)
-                wx = xp - x0
-                wy = yp - y0
-                row_near = int(yp + 0.5)
-                column_near = int(xp + 0.5)
-                nearest = zbuffer[row_near, column_near]
-                observed = _bilinear(tgt, x0, y0, wx, wy) - offset
-                if np.float64(nearest) > np.float64(np.float32(predicted[x])) + tolerance:
-                    status = HIDDEN
-                elif not observed + doffs > 0.0:  # NaN: a support pixel is missing
-                    status = MISSING_TARGET
-                elif src_edges[y, x] or tgt_edges[row_near, column_near]:
-                    status = EDGE
-                elif moving[y, x]:
-                    status = MOVING
-                else:
-                    r = observed - predicted[x]
-                    rz = fb / (observed + doffs) - depth[x]
+        for x in range(width):  # branch-free: masks are not predictable
+            xp = xs[x]  # 0 where the point lands nowhere: every gather stays inside
+            yp = ys[x]
+            x0 = min(int(xp), width - 2)
+            y0 = min(int(yp), height - 2)
+            wx = xp - x0
+            wy = yp - y0
+            row_near = int(yp + 0.5)
+            column_near = int(xp + 0.5)
+            observed = _bilinear(tgt, x0, y0, wx, wy) - offset
+            value = predicted[x]
+            nearest = np.float64(zbuffer[row_near, column_near])
+            hidden = nearest > np.float64(np.float32(value)) + tolerance
+            edge = src_edges[y, x] | tgt_edges[row_near, column_near]
+            status = (
+                MISSING
+                if not np.float64(row[x]) - offset + doffs > 0.0
+                else BORDER
+                if not lands[x]
+                else HIDDEN
+                if hidden
+                else MISSING_TARGET
+                if not observed + doffs > 0.0  # NaN: a support pixel is missing
+                else EDGE
+                if edge
+                else MOVING
+                if moving[y, x]
+                else COUNTED
+            )
+            counted = status == COUNTED
+            r = observed - value if counted else np.nan
+            rz = fb / (observed + doffs) - depth[x] if counted else np.nan
             status_map[y, x] = status
             r_map[y, x] = r
             rz_map[y, x] = rz
-            cell = cells[y, x]
-            if cell >= 0:
-                _add(sums, cell, status, r, rz, thresholds)
+        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
+
+
+MASKED_CELLS = 4
+"""Up to this many cells, a row's sums are one vectorised masked pass per cell."""
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _row_sums(
+    status: np.ndarray,
+    r: np.ndarray,
+    rz: np.ndarray,
+    cells: np.ndarray,
+    thresholds: np.ndarray,
+    sums: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add one row's pixels to their cells (``cells`` < 0: none; ``r`` NaN unless counted).
+
+    A kernel of its own, with reassociation allowed so its sums vectorise; the geometry stays
+    exact IEEE arithmetic (numpy re-computes it bit for bit).
+    """
+    n_cells = sums.shape[0]
+    if n_cells > MASKED_CELLS:
+        for x in range(status.shape[0]):
+            if cells[x] >= 0:
+                _add(sums, cells[x], status[x], r[x], rz[x], thresholds)
+        return
+    for cell in range(n_cells):
+        n = 0.0
+        by_status = np.zeros(STATUSES, np.float64)
+        for x in range(status.shape[0]):  # status counts: a small scatter
+            inside = cells[x] == cell
+            n += 1.0 if inside else 0.0
+            by_status[status[x]] += 1.0 if inside else 0.0
+        sum_abs = total = sum_sq = sum_abs_z = sum_sq_z = 0.0
+        for x in range(status.shape[0]):  # residual terms: vectorises (selects, no branches)
+            counted = (cells[x] == cell) & (status[x] == COUNTED)
+            value = np.float64(r[x]) if counted else 0.0
+            value_z = np.float64(rz[x]) if counted else 0.0
+            sum_abs += abs(value)
+            total += value
+            sum_sq += value * value
+            sum_abs_z += abs(value_z)
+            sum_sq_z += value_z * value_z
+        totals = sums[cell]
+        totals[COL_N] += n
+        for k in range(STATUSES):
+            totals[COL_STATUS + k] += by_status[k]
+        totals[COL_SUM_ABS] += sum_abs
+        totals[COL_SUM] += total
+        totals[COL_SUM_SQ] += sum_sq
+        totals[COL_SUM_ABS_Z] += sum_abs_z
+        totals[COL_SUM_SQ_Z] += sum_sq_z
+        for i in range(thresholds.shape[0]):
+            limit = thresholds[i]
+            bad = 0.0
+            for x in range(status.shape[0]):  # NaN (not counted) is never above a threshold
+                bad += 1.0 if (cells[x] == cell) & (abs(np.float64(r[x])) > limit) else 0.0
+            totals[COL_BAD + i] += bad
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _add(
     sums: np.ndarray, cell: int, status: int, r: float, rz: float, thresholds: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """Add one pixel to its cell: its status count and, when counted, its residual terms."""
+    """Add one pixel to its cell: its status count and, when counted (r not NaN), its terms.
+
+    Branch-free: a pixel that is not counted adds zeros.
+    """
+    counted = status == COUNTED
+    r = r if counted else 0.0
+    rz = rz if counted else 0.0
     sums[cell, COL_N] += 1.0
     sums[cell, COL_STATUS + status] += 1.0
-    if status == COUNTED:
-        magnitude = abs(r)
-        sums[cell, COL_SUM_ABS] += magnitude
-        sums[cell, COL_SUM] += r
-        sums[cell, COL_SUM_SQ] += r * r
-        sums[cell, COL_SUM_ABS_Z] += abs(rz)
-        sums[cell, COL_SUM_SQ_Z] += rz * rz
-        for i in range(thresholds.shape[0]):
-            sums[cell, COL_BAD + i] += 1.0 if magnitude > thresholds[i] else 0.0
+    magnitude = abs(r)
+    sums[cell, COL_SUM_ABS] += magnitude
+    sums[cell, COL_SUM] += r
+    sums[cell, COL_SUM_SQ] += r * r
+    sums[cell, COL_SUM_ABS_Z] += abs(rz)
+    sums[cell, COL_SUM_SQ_Z] += rz * rz
+    for i in range(thresholds.shape[0]):
+        sums[cell, COL_BAD + i] += 1.0 if magnitude > thresholds[i] else 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -225,80 +288,135 @@ def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> floa
     return top + wy * (c + wx * (d - c) - top)
 
 
+@njit(cache=True, nogil=True)
+def fit_samples(
+    source: np.ndarray, edges: np.ndarray, stride: int
+) -> np.ndarray:  # pragma: no cover
+    """The pixels the offset fit may use, as ``(y, x)`` rows (int32, N × 2).
+
+    Every ``stride``-th pixel of every ``stride``-th row with an estimate and no depth edge.
+    """
+    height, width = source.shape
+    out = np.empty(
+        ((height + stride - 1) // stride * ((width + stride - 1) // stride), 2), np.int32
+    )
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            if source[y, x] > -np.inf and not edges[y, x]:  # NaN: missing
+                out[n, 0] = y
+                out[n, 1] = x
+                n += 1
+    return out[:n]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def offset_terms(
+def offset_residuals(
     source: np.ndarray,
-    target: np.ndarray,
+    target: tuple[np.ndarray, np.ndarray],
+    images: tuple[np.ndarray, np.ndarray],
+    samples: np.ndarray,
     rt: np.ndarray,
     geo: np.ndarray,
     offset: float,
-    status_map: np.ndarray,
-    inlier: float,
-    stride: int,
-    residuals: np.ndarray,
-) -> tuple[float, float, float, int]:  # pragma: no cover - compiled
-    """Gauss-Newton terms ``(Σ J·r, Σ J², n)`` and the number of residuals written.
+    photometric: float,
+    out: tuple[np.ndarray, np.ndarray],
+) -> int:  # pragma: no cover - compiled
+    """Residuals ``r(b)`` and slopes ``dr/db`` of the samples the offset fit uses; how many.
 
-    Over every ``stride``-th counted pixel of every ``stride``-th row with ``|r| ≤ inlier``.
-    ``r(b)`` is the residual with both estimates shifted by ``−b``, ``J = dr/db`` (analytic:
-    the depth, the landing and the bilinear value all move with ``b``). ``residuals`` gets
-    every finite ``r`` of those pixels, inliers or not (for the robust scale).
+    The ``samples`` (:func:`fit_samples`) that land in the image on a support without a
+    hole or a depth edge of ``target`` (disparity, edges) and pass the photometric check
+    (``images``, or 0×0); no z-buffer (hidden points are outliers the median ignores).
+    ``r(b)`` is the residual with both estimates shifted by ``−b``; ``dr/db`` is analytic (the
+    depth, the landing and the bilinear value all move with ``b``).
     """
     height, width = source.shape
     f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
+    tgt, tgt_edges = target
+    src_image, tgt_image = images
+    residuals, slopes = out
+    photo = src_image.shape[0] == height and tgt_image.shape[0] == height
     last_x = np.float64(width - 1)
     last_y = np.float64(height - 1)
-    jr = 0.0
-    jj = 0.0
-    n = 0.0
     written = 0
-    for y in range(0, height, stride):
+    for i in range(samples.shape[0]):
+        y = samples[i, 0]
+        x = samples[i, 1]
+        s = np.float64(source[y, x]) - offset + doffs
+        z = fb / s
+        u = (x - cx) / f
         v = (y - cy) / f
-        bx = rt[0, 1] * v + rt[0, 2]
-        by = rt[1, 1] * v + rt[1, 2]
-        bz = rt[2, 1] * v + rt[2, 2]
-        for x in range(0, width, stride):
-            if status_map[y, x] != COUNTED:
-                continue
-            s = np.float64(source[y, x]) - offset + doffs
-            z = fb / s
-            u = (x - cx) / f
-            ax = rt[0, 0] * u + bx
-            ay = rt[1, 0] * u + by
-            az = rt[2, 0] * u + bz
-            qx = z * ax + rt[0, 3]
-            qy = z * ay + rt[1, 3]
-            qz = z * az + rt[2, 3]
-            xp = cx + f * qx / qz
-            yp = cy + f * qy / qz
-            if not (s > 0.0 and qz > 0.0 and 0.0 <= xp <= last_x and 0.0 <= yp <= last_y):
-                continue
-            x0 = min(int(xp), width - 2)
-            y0 = min(int(yp), height - 2)
-            wx = xp - x0
-            wy = yp - y0
-            observed = _bilinear(target, x0, y0, wx, wy) - offset
-            r = observed - (fb / qz - doffs)
-            if not abs(r) < np.inf:  # a support pixel is missing
-                continue
-            residuals[written] = r
-            written += 1
-            if not abs(r) <= inlier:
-                continue
-            p00 = np.float64(target[y0, x0])
-            p01 = np.float64(target[y0, x0 + 1])
-            p10 = np.float64(target[y0 + 1, x0])
-            p11 = np.float64(target[y0 + 1, x0 + 1])
-            dz = z * z / fb
-            gx = (1.0 - wy) * (p01 - p00) + wy * (p11 - p10)
-            gy = (1.0 - wx) * (p10 - p00) + wx * (p11 - p01)
-            dxp = f * (ax * qz - qx * az) / (qz * qz) * dz
-            dyp = f * (ay * qz - qy * az) / (qz * qz) * dz
-            j = gx * dxp + gy * dyp - 1.0 + fb * az * dz / (qz * qz)
-            jr += j * r
-            jj += j * j
-            n += 1.0
-    return jr, jj, n, written
+        ax = rt[0, 0] * u + rt[0, 1] * v + rt[0, 2]
+        ay = rt[1, 0] * u + rt[1, 1] * v + rt[1, 2]
+        az = rt[2, 0] * u + rt[2, 1] * v + rt[2, 2]
+        qx = z * ax + rt[0, 3]
+        qy = z * ay + rt[1, 3]
+        qz = z * az + rt[2, 3]
+        xp = cx + f * qx / qz
+        yp = cy + f * qy / qz
+        if not (s > 0.0 and qz > 0.0 and 0.0 <= xp <= last_x and 0.0 <= yp <= last_y):
+            continue
+        x0 = min(int(xp), width - 2)
+        y0 = min(int(yp), height - 2)
+        wx = xp - x0
+        wy = yp - y0
+        r = _bilinear(tgt, x0, y0, wx, wy) - offset - (fb / qz - doffs)
+        if not abs(r) < np.inf or tgt_edges[int(yp + 0.5), int(xp + 0.5)]:
+            continue
+        if photo and (
+            abs(np.float64(src_image[y, x]) - _bilinear(tgt_image, x0, y0, wx, wy)) > photometric
+        ):
+            continue
+        p00 = np.float64(tgt[y0, x0])
+        p01 = np.float64(tgt[y0, x0 + 1])
+        p10 = np.float64(tgt[y0 + 1, x0])
+        p11 = np.float64(tgt[y0 + 1, x0 + 1])
+        dz = z * z / fb
+        gx = (1.0 - wy) * (p01 - p00) + wy * (p11 - p10)
+        gy = (1.0 - wx) * (p10 - p00) + wx * (p11 - p01)
+        dxp = f * (ax * qz - qx * az) / (qz * qz) * dz
+        dyp = f * (ay * qz - qy * az) / (qz * qz) * dz
+        residuals[written] = r
+        slopes[written] = gx * dxp + gy * dyp + fb * az * dz / (qz * qz) - 1.0
+        written += 1
+    return written
+
+
+@njit(cache=True, nogil=True)
+def l1_step(
+    residuals: np.ndarray, slopes: np.ndarray, floor: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The step ``Δ`` minimising ``Σ |r + J·Δ|`` over the inliers, and the mean ``|J|``.
+
+    Inliers: ``|r − median| ≤ max(floor, 4 · 1.4826 · MAD)`` (a moving car's residual of
+    tens of px is no evidence about the offset). The step is the weighted median of ``−r/J``
+    with weights ``|J|``: pixels where the offset changes the residual most decide it.
+    Returns ``(0, 0)`` when nothing is left.
+    """
+    n = residuals.shape[0]
+    centre = np.median(residuals)
+    bound = max(floor, 4.0 * 1.4826 * np.median(np.abs(residuals - centre)))
+    steps = np.empty(n, np.float64)
+    weights = np.empty(n, np.float64)
+    kept = 0
+    total = 0.0
+    for i in range(n):
+        weight = abs(slopes[i])
+        if weight > 0.0 and abs(residuals[i] - centre) <= bound:
+            steps[kept] = -residuals[i] / slopes[i]
+            weights[kept] = weight
+            total += weight
+            kept += 1
+    if kept == 0:
+        return 0.0, 0.0
+    order = np.argsort(steps[:kept])
+    half = 0.5 * total
+    running = 0.0
+    for i in range(kept):
+        running += weights[order[i]]
+        if running >= half:
+            return steps[order[i]], total / kept
+    return steps[order[kept - 1]], total / kept
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
