@@ -36,6 +36,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import types
+from numba.typed import List
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
@@ -441,49 +443,34 @@ class FlickerWindow:
     A pixel counts when it has an estimate in every frame, is near no depth edge of the
     window's mean map (a single frame's edges would follow its noise and mask the noisiest
     pixels) and (with images) its intensity range over the window is within the photometric
-    threshold.
-    ``add`` costs one pass over the frame; nothing of earlier frames is kept but the state.
+    threshold. The window keeps its frames (references, no copies) until :meth:`sums`.
     """
 
     def __init__(self, camera: Camera, options: EgoMotionOptions | None = None) -> None:
         self.camera = camera
         self.options = options or EgoMotionOptions()
-        self.frames = 0
-        self.with_images: bool | None = None
-        self._state: tuple[np.ndarray, ...] = ()
-        self._shape: tuple[int, int] = (0, 0)
+        self._frames: list[MotionFrame] = []
+
+    @property
+    def frames(self) -> int:
+        """Frames added so far."""
+        return len(self._frames)
 
     def add(self, frame: MotionFrame) -> None:
         """Add the next frame of the window (same size; with an image if the first had one)."""
-        if self.frames == 0:
-            shape = self._shape = frame.shape
-            grey = np.empty((2, *shape), np.int16)
-            grey[0], grey[1] = 256, -1  # min > max: no range until an image is added
-            self._state = (
-                np.zeros(shape, np.bool_),
-                *(np.zeros(shape, np.float64) for _ in range(4)),
-                grey,
-            )
-            self.with_images = frame.image.size > 0
-        elif frame.shape != self._shape:
-            raise ShapeMismatchError(
-                f"frame {self.frames + 1} of the flicker window is {crit.size_text(frame.shape)} "
-                f"but the first is {crit.size_text(self._shape)}"
-            )
-        elif (frame.image.size > 0) != self.with_images:
-            raise InputError(
-                f"frame {self.frames + 1} of the flicker window "
-                f"{'has no' if self.with_images else 'has a'} left image, unlike the first"
-            )
-        self.frames += 1
-        km.flicker_add(
-            frame.disparity,
-            frame.image,
-            self.camera.fb,
-            self.camera.doffs,
-            self._state,  # type: ignore[arg-type]
-            float(self.frames),
-        )
+        if self._frames:
+            first = self._frames[0]
+            if frame.shape != first.shape:
+                raise ShapeMismatchError(
+                    f"frame {self.frames + 1} of the flicker window is "
+                    f"{crit.size_text(frame.shape)} but the first is {crit.size_text(first.shape)}"
+                )
+            if (frame.image.size > 0) != (first.image.size > 0):
+                raise InputError(
+                    f"frame {self.frames + 1} of the flicker window "
+                    f"{'has a' if frame.image.size else 'has no'} left image, unlike the first"
+                )
+        self._frames.append(frame)
 
     def sums(
         self, partition: crit.Partition | None = None, *, keep_maps: bool = False
@@ -491,25 +478,30 @@ class FlickerWindow:
         """The window's sums per criterion (at least two frames are needed)."""
         if self.frames < 2:
             raise InputError(f"flicker needs at least 2 frames in a window, got {self.frames}")
-        cells, membership, names = _cells(partition, self._shape)
+        shape = self._frames[0].shape
+        cells, membership, names = _cells(partition, shape)
         thresholds = np.asarray(self.options.thresholds, dtype=np.float64)
         sums = np.zeros((membership.shape[1], len(BASE_COLUMNS) + thresholds.size), np.float64)
-        _, _, status, residual, residual_z = _buffers(self._shape)
+        zbuffer, _, status, residual, residual_z = _buffers(shape)
         maps = (status, residual, residual_z)
-        missing, mean = self._state[0], self._state[1]
-        edges = crit.discontinuities(
-            mean.astype(np.float32), ~missing, self.options.edge_gap, self.options.edge_width
-        )
-        km.flicker_sums(
-            self._state,  # type: ignore[arg-type]
-            np.ascontiguousarray(edges),
-            float(self.frames),
+        mean = zbuffer  # this thread's float32 scratch of the image size
+        disparities = List([frame.disparity for frame in self._frames])
+        images = List([frame.image for frame in self._frames if frame.image.size])
+        if not images:
+            images = List.empty_list(types.uint8[:, ::1])
+        km.flicker_spread(
+            disparities,
+            images,
+            self.camera.fb,
+            self.camera.doffs,
             self.options.photometric_threshold,
-            cells,
-            thresholds,
-            sums,
+            mean,
             maps,
         )
+        edges = crit.discontinuities(
+            mean, np.isfinite(mean), self.options.edge_gap, self.options.edge_width
+        )
+        km.flicker_sums(np.ascontiguousarray(edges), cells, thresholds, sums, maps)
         return TemporalSums(
             "flicker",
             names,

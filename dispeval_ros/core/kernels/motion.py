@@ -420,79 +420,100 @@ def l1_step(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def flicker_add(
-    disparity: np.ndarray,
-    image: np.ndarray,
+def flicker_spread(
+    disparities: list[np.ndarray],
+    images: list[np.ndarray],
     fb: float,
     doffs: float,
-    state: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    count: float,
+    photometric: float,
+    mean: np.ndarray,
+    maps: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:  # pragma: no cover - compiled
-    """Add frame number ``count`` (1-based) to a window's per-pixel state (Welford's update).
+    """Per-pixel sample spread (``ddof = 1``) of disparity and depth over a window of frames.
 
-    ``state``: missing in some frame (bool), mean and M2 of the disparity and of the depth
-    (float64), and the intensity range (int16 min and max as a (2, H, W) array; untouched
-    when ``image`` is 0×0).
+    Row by row, each frame's row read twice from cache (mean, then squared deviations: no
+    cancellation), every loop a vectorised pass. Writes the window's ``mean`` disparity
+    (NaN where a frame has no estimate), the status (missing in a frame, else moving when the
+    intensity range over ``images`` exceeds ``photometric``, else counted: edges come later
+    from ``mean``) and the spreads (NaN unless counted). The loops are element-wise: they
+    vectorise without reassociation, so an unchanging pixel has a spread of exactly 0.
     """
-    missing, mean, m2, mean_z, m2_z, grey = state
-    height, width = disparity.shape
-    with_image = image.shape[0] == height
+    status_map, r_map, rz_map = maps
+    frames = len(disparities)
+    height, width = mean.shape
+    with_images = len(images) == frames
+    total = np.empty(width, np.float64)
+    total_z = np.empty(width, np.float64)
+    square = np.empty(width, np.float64)
+    square_z = np.empty(width, np.float64)
+    valid = np.empty(width, np.float64)
+    values = np.empty((frames, width), np.float64)
+    depths = np.empty((frames, width), np.float64)
+    low = np.empty(width, np.int32)
+    high = np.empty(width, np.int32)
     for y in range(height):
+        total[:] = 0.0
+        total_z[:] = 0.0
+        valid[:] = 0.0
+        for f in range(frames):  # each frame's row once: values, depths and their totals
+            row = disparities[f][y]
+            d_row = values[f]
+            z_row = depths[f]
+            for x in range(width):
+                d = np.float64(row[x])
+                s = d + doffs
+                ok = s > 0.0
+                d_row[x] = d if ok else 0.0
+                z_row[x] = fb / s if ok else 0.0
+                valid[x] += 1.0 if ok else 0.0
+                total[x] += d_row[x]
+                total_z[x] += z_row[x]
         for x in range(width):
-            d = np.float64(disparity[y, x])
-            s = d + doffs
-            if not s > 0.0:
-                missing[y, x] = True
-            else:
-                z = fb / s
-                delta = d - mean[y, x]
-                mean[y, x] += delta / count
-                m2[y, x] += delta * (d - mean[y, x])
-                delta_z = z - mean_z[y, x]
-                mean_z[y, x] += delta_z / count
-                m2_z[y, x] += delta_z * (z - mean_z[y, x])
-            if with_image:
-                g = np.int16(image[y, x])
-                grey[0, y, x] = min(grey[0, y, x], g)
-                grey[1, y, x] = max(grey[1, y, x], g)
+            total[x] /= frames
+            total_z[x] /= frames
+        square[:] = 0.0
+        square_z[:] = 0.0
+        for f in range(frames):  # squared deviations from the mean: no cancellation
+            d_row = values[f]
+            z_row = depths[f]
+            for x in range(width):
+                deviation = d_row[x] - total[x]
+                deviation_z = z_row[x] - total_z[x]
+                square[x] += deviation * deviation
+                square_z[x] += deviation_z * deviation_z
+        low[:] = 256
+        high[:] = -1
+        if with_images:
+            for f in range(frames):
+                grey = images[f][y]
+                for x in range(width):
+                    low[x] = min(low[x], np.int32(grey[x]))
+                    high[x] = max(high[x], np.int32(grey[x]))
+        for x in range(width):
+            complete = valid[x] == frames
+            moving = np.float64(high[x] - low[x]) > photometric
+            mean[y, x] = np.float32(total[x]) if complete else np.float32(np.nan)
+            status_map[y, x] = MISSING if not complete else (MOVING if moving else COUNTED)
+            counted = complete and not moving
+            r_map[y, x] = np.sqrt(square[x] / (frames - 1)) if counted else np.nan
+            rz_map[y, x] = np.sqrt(square_z[x] / (frames - 1)) if counted else np.nan
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def flicker_sums(
-    state: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     edges: np.ndarray,
-    frames: float,
-    photometric: float,
     cells: np.ndarray,
     thresholds: np.ndarray,
     sums: np.ndarray,
     maps: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:  # pragma: no cover - compiled
-    """Per-pixel sample spread (``ddof = 1``) of a window and the sums of each cell.
-
-    Masks in order: missing in any frame, ``edges`` (of the window's mean map), intensity
-    range above ``photometric`` (moving; without images the range is negative).
-    """
-    missing, _, m2, _, m2_z, grey = state
+    """Mark counted pixels near an edge of the mean map (before moving) and add every cell."""
     status_map, r_map, rz_map = maps
-    height, width = missing.shape
+    height, width = edges.shape
     for y in range(height):
         for x in range(width):
-            status = COUNTED
-            r = np.nan
-            rz = np.nan
-            if missing[y, x]:
-                status = MISSING
-            elif edges[y, x]:
-                status = EDGE
-            elif np.float64(grey[1, y, x]) - np.float64(grey[0, y, x]) > photometric:
-                status = MOVING
-            else:
-                r = np.sqrt(m2[y, x] / (frames - 1.0))
-                rz = np.sqrt(m2_z[y, x] / (frames - 1.0))
-            status_map[y, x] = status
-            r_map[y, x] = r
-            rz_map[y, x] = rz
-            cell = cells[y, x]
-            if cell >= 0:
-                _add(sums, cell, status, r, rz, thresholds)
+            if edges[y, x] and status_map[y, x] != MISSING:
+                status_map[y, x] = EDGE
+                r_map[y, x] = np.nan
+                rz_map[y, x] = np.nan
+        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
