@@ -89,7 +89,11 @@ class PinholeCamera:
 
 @dataclass(frozen=True)
 class EgoMotionOptions:
-    """Masks, thresholds and the offset fit (see the module)."""
+    """Masks, thresholds and the offset fit (see the module).
+
+    ``edge_gap`` and ``edge_width`` apply where edge masks are made: :func:`prepare_frame`
+    and :class:`FlickerWindow`; a residual uses the masks of the frames it is given.
+    """
 
     border: float = 0.0
     occlusion_tolerance: float = 2.0
