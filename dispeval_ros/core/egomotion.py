@@ -7,21 +7,22 @@ sub-pixel position with a predicted disparity. The residual is the estimate ``d�
 pixels, and the same in depth (metres). Pixels are masked, each reason counted on its own
 (the first that applies, in this order): no estimate at ``t``; the point leaves the image
 (behind the camera, or lands within ``border`` px of the edge); it is hidden at ``t + k``
-(a point landing on its bilinear support predicts a disparity larger by more than
-``occlusion_tolerance`` px: a z-buffer of the moved points); the estimate at ``t + k`` has a
-hole in the support; it is near a depth edge (a 4-neighbour jump larger than ``edge_gap``
-dilated by ``edge_width``) in either map; the left image at ``t`` and the left image at
-``t + k`` at the landing differ by more than ``photometric_threshold`` grey levels (the point
-moved, or is not what the motion assumes).
+(the z-buffer of the moved points, each written into its 2×2 bilinear support, holds at the
+landing's nearest pixel a disparity larger by more than ``occlusion_tolerance`` px); the
+estimate at ``t + k`` has a hole in the support; it is near a depth edge (a 4-neighbour jump
+larger than ``edge_gap`` dilated by ``edge_width``) in either map; the left image at ``t`` and
+the left image at ``t + k`` at the landing differ by more than ``photometric_threshold`` grey
+levels (the point moved, or is not what the motion assumes; such a point hides nothing).
 
 It measures noise, not bias. A constant disparity offset ``b`` is a ``doffs`` error: under a
 motion along the optical axis it does not cancel (``Z`` changes, so does the disparity's
-sensitivity to it). By default the offset that best explains the pair (Gauss-Newton on the
-counted pixels, both maps shifted by ``−b``) is removed and reported; under it a method with a
-constant bias scores exactly what it scores without the bias. Without ``fit_offset`` the
-offset cancels exactly only for motions that keep every depth (rotation about the optical axis
-with no translation; translation parallel to the image over fronto-parallel surfaces) and for
-a static camera.
+sensitivity to it). By default the offset that explains the pair best (least absolute
+residuals of a sparse grid, both maps shifted by ``−b``: :func:`_fit_offset`) is removed and
+reported; under it a method with a constant bias scores what it scores without the bias. The
+offset is weakly observable, so its fitted value is noisy: not a bias estimate. Without
+``fit_offset`` a constant offset cancels exactly only for a static camera and for motions that
+keep every depth (rotation about the optical axis; translation parallel to the image over
+fronto-parallel surfaces).
 
 For a static camera (no motion) :class:`FlickerWindow` gives flicker: the per-pixel sample
 spread (``ddof = 1``) of the estimate over a window of frames. Both produce
@@ -335,34 +336,13 @@ def egomotion_residual(
         images = (_NO_IMAGE, _NO_IMAGE)
     src = (source.disparity, source.edges)
     tgt = (target.disparity, target.edges)
+    offset = _fit_offset(source, tgt, images, rt, geo, chosen) if chosen.fit_offset else 0.0
+    sums = np.zeros((membership.shape[1], len(BASE_COLUMNS) + thresholds.size), np.float64)
     threshold = chosen.photometric_threshold
-
-    def run(offset: float) -> np.ndarray:
-        sums = np.zeros((membership.shape[1], len(BASE_COLUMNS) + thresholds.size), np.float64)
-        km.motion_splat(
-            source.disparity, images, rt, geo, offset, threshold, zbuffer, moving, scratch
-        )
-        km.motion_classify(
-            src,
-            tgt,
-            rt,
-            geo,
-            offset,
-            limits,
-            zbuffer,
-            moving,
-            cells,
-            thresholds,
-            sums,
-            maps,
-            scratch,
-        )
-        return sums
-
-    offset = 0.0
-    if chosen.fit_offset:
-        offset = _fit_offset(source, (target.disparity, target.edges), images, rt, geo, chosen)
-    sums = run(offset)
+    km.motion_splat(source.disparity, images, rt, geo, offset, threshold, zbuffer, moving, scratch)
+    km.motion_classify(
+        src, tgt, rt, geo, offset, limits, zbuffer, moving, cells, thresholds, sums, maps, scratch
+    )
     kept = tuple(m.copy() for m in maps) if keep_maps else ()
     return TemporalSums(
         "egomotion",
