@@ -356,7 +356,7 @@ def egomotion_residual(
 
 FIT_STRIDE = 6
 """The offset is fitted on every 6th pixel of every 6th row: one constant needs few pixels."""
-FIT_ITERATIONS = 4
+FIT_ITERATIONS = 3
 FIT_TOLERANCE = 1e-6
 """The fit stops when the offset changes by less than this (px)."""
 FIT_MINIMUM = 16
