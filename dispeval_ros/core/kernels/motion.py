@@ -1,0 +1,519 @@
+"""Compiled loops of the temporal measures: ego-motion reprojection (z-buffer, masks, sums).
+
+Kept apart from :mod:`dispeval_ros.core.egomotion` (records, checks, the offset fit) because
+these are the only loops that touch every pixel. Geometry, in the left rectified camera at
+``t``: a pixel ``(x, y)`` with disparity ``e`` and offset ``b`` has depth ``Z = f·B/(e − b +
+doffs)`` and the point ``P = Z·((x − cx)/f, (y − cy)/f, 1)``; ``Q = R·P + T`` is that point in
+the camera at ``t + k``, where it lands at ``(cx + f·Qx/Qz, cy + f·Qy/Qz)`` with the
+disparity ``f·B/Qz − doffs``. ``rt`` is the 3×4 ``[R | T]``; ``geo`` is ``(f, cx, cy, f·B,
+doffs)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dispeval_ros.core.kernels._jit import _FAST, njit
+
+# Status of a source pixel, in the order the masks are tried (the first that applies wins).
+COUNTED, MISSING, BORDER, HIDDEN, MISSING_TARGET, EDGE, MOVING = range(7)
+STATUSES = 7
+# Accumulator columns: n, one count per status (COL_STATUS + status), then the residual sums
+# of the counted pixels and one count per threshold (|r| > threshold).
+COL_N = 0
+COL_STATUS = 1
+COL_SUM_ABS = COL_STATUS + STATUSES
+COL_SUM = COL_SUM_ABS + 1
+COL_SUM_SQ = COL_SUM + 1
+COL_SUM_ABS_Z = COL_SUM_SQ + 1
+COL_SUM_SQ_Z = COL_SUM_ABS_Z + 1
+COL_BAD = COL_SUM_SQ_Z + 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _row_geometry(
+    row: np.ndarray,
+    y: int,
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    box: tuple[float, float, float, float],
+    out: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """Landing ``(x', y')``, predicted disparity, ``Qz`` and "lands in ``box``" of one row.
+
+    Branch-free, so it vectorises: a missing estimate (NaN), no depth (``s ≤ 0``) or a point
+    behind the camera fail the comparisons and land nowhere. ``box`` is (x_lo, x_hi, y_lo,
+    y_hi) of the landings kept.
+    """
+    xs, ys, predicted, depth, lands = out
+    f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
+    v = (y - cy) / f
+    bx = rt[0, 1] * v + rt[0, 2]
+    by = rt[1, 1] * v + rt[1, 2]
+    bz = rt[2, 1] * v + rt[2, 2]
+    x_lo, x_hi, y_lo, y_hi = box
+    for x in range(row.shape[0]):
+        s = np.float64(row[x]) - offset + doffs
+        z = fb / s
+        u = (x - cx) / f
+        qz = z * (rt[2, 0] * u + bz) + rt[2, 3]
+        inverse = 1.0 / qz
+        xp = cx + f * (z * (rt[0, 0] * u + bx) + rt[0, 3]) * inverse
+        yp = cy + f * (z * (rt[1, 0] * u + by) + rt[1, 3]) * inverse
+        ok = (s > 0.0) & (qz > 0.0) & (xp >= x_lo) & (xp <= x_hi) & (yp >= y_lo) & (yp <= y_hi)
+        xs[x] = xp if ok else 0.0
+        ys[x] = yp if ok else 0.0
+        predicted[x] = fb * inverse - doffs
+        depth[x] = qz
+        lands[x] = ok
+
+
+Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def row_buffers(width: int) -> Row:
+    """Scratch of :func:`_row_geometry`: x', y', predicted disparity, Qz, lands."""
+    held = [np.empty(width, np.float64) for _ in range(4)]
+    return (held[0], held[1], held[2], held[3], np.empty(width, np.bool_))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def motion_splat(
+    source: np.ndarray,
+    images: tuple[np.ndarray, np.ndarray],
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    photometric: float,
+    zbuffer: np.ndarray,
+    moving: np.ndarray,
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """The z-buffer of ``t + k`` (float32 disparities, largest = nearest) from the points of ``t``.
+
+    Each point writes its predicted disparity into the four pixels of its bilinear support
+    (``⌊x'⌋, ⌊x'⌋ + 1`` × ``⌊y'⌋, ⌊y'⌋ + 1``): a surface magnified up to 2× leaves no hole
+    through which a point it hides would look visible. Points that fail the photometric check
+    (``images``: left at ``t`` and ``t + k``, or 0×0) are marked in ``moving`` (written in full)
+    and hide nothing: a car that drove away would otherwise hide the road it uncovered.
+    """
+    height, width = source.shape
+    zbuffer[:] = -np.inf
+    moving[:] = False
+    box = (0.0, np.float64(width - 1), 0.0, np.float64(height - 1))
+    xs, ys, predicted, _, lands = scratch
+    src_image, tgt_image = images
+    photo = src_image.shape[0] == height and tgt_image.shape[0] == height
+    for y in range(height):
+        _row_geometry(source[y], y, rt, geo, offset, box, scratch)
+        for x in range(width):
+            if not lands[x]:
+                continue
+            value = np.float32(predicted[x])
+            x0 = min(int(xs[x]), width - 2)
+            y0 = min(int(ys[x]), height - 2)
+            if photo:  # branch-free: whether a point moved is not predictable
+                seen = _bilinear(tgt_image, x0, y0, xs[x] - x0, ys[x] - y0)
+                flag = abs(np.float64(src_image[y, x]) - seen) > photometric
+                moving[y, x] = flag
+                value = np.float32(-np.inf) if flag else value
+            zbuffer[y0, x0] = max(zbuffer[y0, x0], value)
+            zbuffer[y0, x0 + 1] = max(zbuffer[y0, x0 + 1], value)
+            zbuffer[y0 + 1, x0] = max(zbuffer[y0 + 1, x0], value)
+            zbuffer[y0 + 1, x0 + 1] = max(zbuffer[y0 + 1, x0 + 1], value)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def motion_classify(
+    source: tuple[np.ndarray, np.ndarray],
+    target: tuple[np.ndarray, np.ndarray],
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    limits: np.ndarray,
+    zbuffer: np.ndarray,
+    moving: np.ndarray,
+    cells: np.ndarray,
+    thresholds: np.ndarray,
+    sums: np.ndarray,
+    maps: tuple[np.ndarray, np.ndarray, np.ndarray],
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """Every source pixel's status and residual; adds the sums of its cell (``cells`` < 0: none).
+
+    ``source``/``target``: (disparity with NaN where missing, edge mask); ``zbuffer`` and
+    ``moving`` from :func:`motion_splat`; ``limits``: (border margin px, occlusion tolerance px).
+    ``maps``: the status (int8), disparity residual and depth residual (float32, NaN unless
+    counted) of every pixel, written in full.
+    """
+    src, src_edges = source
+    tgt, tgt_edges = target
+    status_map, r_map, rz_map = maps
+    height, width = src.shape
+    fb, doffs = geo[3], geo[4]
+    margin, tolerance = limits[0], limits[1]
+    box = (margin, np.float64(width - 1) - margin, margin, np.float64(height - 1) - margin)
+    xs, ys, predicted, depth, lands = scratch
+    for y in range(height):
+        row = src[y]
+        _row_geometry(row, y, rt, geo, offset, box, scratch)
+        for x in range(width):  # branch-free: masks are not predictable
+            xp = xs[x]  # 0 where the point lands nowhere: every gather stays inside
+            yp = ys[x]
+            x0 = min(int(xp), width - 2)
+            y0 = min(int(yp), height - 2)
+            wx = xp - x0
+            wy = yp - y0
+            row_near = int(yp + 0.5)
+            column_near = int(xp + 0.5)
+            observed = _bilinear(tgt, x0, y0, wx, wy) - offset
+            value = predicted[x]
+            nearest = np.float64(zbuffer[row_near, column_near])
+            hidden = nearest > np.float64(np.float32(value)) + tolerance
+            edge = src_edges[y, x] | tgt_edges[row_near, column_near]
+            status = (
+                MISSING
+                if not np.float64(row[x]) - offset + doffs > 0.0
+                else BORDER
+                if not lands[x]
+                else HIDDEN
+                if hidden
+                else MISSING_TARGET
+                if not observed + doffs > 0.0  # NaN: a support pixel is missing
+                else EDGE
+                if edge
+                else MOVING
+                if moving[y, x]
+                else COUNTED
+            )
+            counted = status == COUNTED
+            r = observed - value if counted else np.nan
+            rz = fb / (observed + doffs) - depth[x] if counted else np.nan
+            status_map[y, x] = status
+            r_map[y, x] = r
+            rz_map[y, x] = rz
+        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
+
+
+MASKED_CELLS = 4
+"""Up to this many cells, a row's sums are one vectorised masked pass per cell."""
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, error_model="numpy")
+def _row_sums(
+    status: np.ndarray,
+    r: np.ndarray,
+    rz: np.ndarray,
+    cells: np.ndarray,
+    thresholds: np.ndarray,
+    sums: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Add one row's pixels to their cells (``cells`` < 0: none; ``r`` NaN unless counted).
+
+    A kernel of its own, with reassociation allowed so its sums vectorise; the geometry stays
+    exact IEEE arithmetic (numpy re-computes it bit for bit).
+    """
+    n_cells = sums.shape[0]
+    if n_cells > MASKED_CELLS:
+        for x in range(status.shape[0]):
+            if cells[x] >= 0:
+                _add(sums, cells[x], status[x], r[x], rz[x], thresholds)
+        return
+    for cell in range(n_cells):
+        n = 0.0
+        by_status = np.zeros(STATUSES, np.float64)
+        for x in range(status.shape[0]):  # status counts: a small scatter
+            inside = cells[x] == cell
+            n += 1.0 if inside else 0.0
+            by_status[status[x]] += 1.0 if inside else 0.0
+        sum_abs = total = sum_sq = sum_abs_z = sum_sq_z = 0.0
+        for x in range(status.shape[0]):  # residual terms: vectorises (selects, no branches)
+            counted = (cells[x] == cell) & (status[x] == COUNTED)
+            value = np.float64(r[x]) if counted else 0.0
+            value_z = np.float64(rz[x]) if counted else 0.0
+            sum_abs += abs(value)
+            total += value
+            sum_sq += value * value
+            sum_abs_z += abs(value_z)
+            sum_sq_z += value_z * value_z
+        totals = sums[cell]
+        totals[COL_N] += n
+        for k in range(STATUSES):
+            totals[COL_STATUS + k] += by_status[k]
+        totals[COL_SUM_ABS] += sum_abs
+        totals[COL_SUM] += total
+        totals[COL_SUM_SQ] += sum_sq
+        totals[COL_SUM_ABS_Z] += sum_abs_z
+        totals[COL_SUM_SQ_Z] += sum_sq_z
+        for i in range(thresholds.shape[0]):
+            limit = thresholds[i]
+            bad = 0.0
+            for x in range(status.shape[0]):  # NaN (not counted) is never above a threshold
+                bad += 1.0 if (cells[x] == cell) & (abs(np.float64(r[x])) > limit) else 0.0
+            totals[COL_BAD + i] += bad
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _add(
+    sums: np.ndarray, cell: int, status: int, r: float, rz: float, thresholds: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Add one pixel to its cell: its status count and, when counted (r not NaN), its terms.
+
+    Branch-free: a pixel that is not counted adds zeros.
+    """
+    counted = status == COUNTED
+    r = r if counted else 0.0
+    rz = rz if counted else 0.0
+    sums[cell, COL_N] += 1.0
+    sums[cell, COL_STATUS + status] += 1.0
+    magnitude = abs(r)
+    sums[cell, COL_SUM_ABS] += magnitude
+    sums[cell, COL_SUM] += r
+    sums[cell, COL_SUM_SQ] += r * r
+    sums[cell, COL_SUM_ABS_Z] += abs(rz)
+    sums[cell, COL_SUM_SQ_Z] += rz * rz
+    for i in range(thresholds.shape[0]):
+        sums[cell, COL_BAD + i] += 1.0 if magnitude > thresholds[i] else 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> float:
+    """Bilinear value at ``(x0 + wx, y0 + wy)`` (NaN when a support pixel is NaN)."""
+    a = np.float64(image[y0, x0])
+    b = np.float64(image[y0, x0 + 1])
+    c = np.float64(image[y0 + 1, x0])
+    d = np.float64(image[y0 + 1, x0 + 1])
+    top = a + wx * (b - a)
+    return top + wy * (c + wx * (d - c) - top)
+
+
+@njit(cache=True, nogil=True)
+def fit_samples(
+    source: np.ndarray, edges: np.ndarray, stride: int
+) -> np.ndarray:  # pragma: no cover
+    """The pixels the offset fit may use, as ``(y, x)`` rows (int32, N × 2).
+
+    Every ``stride``-th pixel of every ``stride``-th row with an estimate and no depth edge.
+    """
+    height, width = source.shape
+    out = np.empty(
+        ((height + stride - 1) // stride * ((width + stride - 1) // stride), 2), np.int32
+    )
+    n = 0
+    for y in range(0, height, stride):
+        for x in range(0, width, stride):
+            if source[y, x] > -np.inf and not edges[y, x]:  # NaN: missing
+                out[n, 0] = y
+                out[n, 1] = x
+                n += 1
+    return out[:n]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def offset_residuals(
+    source: np.ndarray,
+    target: tuple[np.ndarray, np.ndarray],
+    images: tuple[np.ndarray, np.ndarray],
+    samples: np.ndarray,
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    photometric: float,
+    out: tuple[np.ndarray, np.ndarray],
+) -> int:  # pragma: no cover - compiled
+    """Residuals ``r(b)`` and slopes ``dr/db`` of the samples the offset fit uses; how many.
+
+    The ``samples`` (:func:`fit_samples`) that land in the image on a support without a
+    hole or a depth edge of ``target`` (disparity, edges) and pass the photometric check
+    (``images``, or 0×0); no z-buffer (hidden points are outliers the median ignores).
+    ``r(b)`` is the residual with both estimates shifted by ``−b``; ``dr/db`` is analytic (the
+    depth, the landing and the bilinear value all move with ``b``).
+    """
+    height, width = source.shape
+    f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
+    tgt, tgt_edges = target
+    src_image, tgt_image = images
+    residuals, slopes = out
+    photo = src_image.shape[0] == height and tgt_image.shape[0] == height
+    last_x = np.float64(width - 1)
+    last_y = np.float64(height - 1)
+    written = 0
+    for i in range(samples.shape[0]):
+        y = samples[i, 0]
+        x = samples[i, 1]
+        s = np.float64(source[y, x]) - offset + doffs
+        z = fb / s
+        u = (x - cx) / f
+        v = (y - cy) / f
+        ax = rt[0, 0] * u + rt[0, 1] * v + rt[0, 2]
+        ay = rt[1, 0] * u + rt[1, 1] * v + rt[1, 2]
+        az = rt[2, 0] * u + rt[2, 1] * v + rt[2, 2]
+        qx = z * ax + rt[0, 3]
+        qy = z * ay + rt[1, 3]
+        qz = z * az + rt[2, 3]
+        xp = cx + f * qx / qz
+        yp = cy + f * qy / qz
+        if not (s > 0.0 and qz > 0.0 and 0.0 <= xp <= last_x and 0.0 <= yp <= last_y):
+            continue
+        x0 = min(int(xp), width - 2)
+        y0 = min(int(yp), height - 2)
+        wx = xp - x0
+        wy = yp - y0
+        r = _bilinear(tgt, x0, y0, wx, wy) - offset - (fb / qz - doffs)
+        if not abs(r) < np.inf or tgt_edges[int(yp + 0.5), int(xp + 0.5)]:
+            continue
+        if photo and (
+            abs(np.float64(src_image[y, x]) - _bilinear(tgt_image, x0, y0, wx, wy)) > photometric
+        ):
+            continue
+        p00 = np.float64(tgt[y0, x0])
+        p01 = np.float64(tgt[y0, x0 + 1])
+        p10 = np.float64(tgt[y0 + 1, x0])
+        p11 = np.float64(tgt[y0 + 1, x0 + 1])
+        dz = z * z / fb
+        gx = (1.0 - wy) * (p01 - p00) + wy * (p11 - p10)
+        gy = (1.0 - wx) * (p10 - p00) + wx * (p11 - p01)
+        dxp = f * (ax * qz - qx * az) / (qz * qz) * dz
+        dyp = f * (ay * qz - qy * az) / (qz * qz) * dz
+        residuals[written] = r
+        slopes[written] = gx * dxp + gy * dyp + fb * az * dz / (qz * qz) - 1.0
+        written += 1
+    return written
+
+
+@njit(cache=True, nogil=True)
+def l1_step(
+    residuals: np.ndarray, slopes: np.ndarray, floor: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The step ``Δ`` minimising ``Σ |r + J·Δ|`` over the inliers, and the mean ``|J|``.
+
+    Inliers: ``|r − median| ≤ max(floor, 4 · 1.4826 · MAD)`` (a moving car's residual of
+    tens of px is no evidence about the offset). The step is the weighted median of ``−r/J``
+    with weights ``|J|``: pixels where the offset changes the residual most decide it.
+    Returns ``(0, 0)`` when nothing is left.
+    """
+    n = residuals.shape[0]
+    centre = np.median(residuals)
+    bound = max(floor, 4.0 * 1.4826 * np.median(np.abs(residuals - centre)))
+    steps = np.empty(n, np.float64)
+    weights = np.empty(n, np.float64)
+    kept = 0
+    total = 0.0
+    for i in range(n):
+        weight = abs(slopes[i])
+        if weight > 0.0 and abs(residuals[i] - centre) <= bound:
+            steps[kept] = -residuals[i] / slopes[i]
+            weights[kept] = weight
+            total += weight
+            kept += 1
+    if kept == 0:
+        return 0.0, 0.0
+    order = np.argsort(steps[:kept])
+    half = 0.5 * total
+    running = 0.0
+    for i in range(kept):
+        running += weights[order[i]]
+        if running >= half:
+            return steps[order[i]], total / kept
+    return steps[order[kept - 1]], total / kept
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def flicker_spread(
+    disparities: list[np.ndarray],
+    images: list[np.ndarray],
+    fb: float,
+    doffs: float,
+    photometric: float,
+    mean: np.ndarray,
+    maps: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """Per-pixel sample spread (``ddof = 1``) of disparity and depth over a window of frames.
+
+    Row by row, each frame's row read twice from cache (mean, then squared deviations: no
+    cancellation), every loop a vectorised pass. Writes the window's ``mean`` disparity
+    (NaN where a frame has no estimate), the status (missing in a frame, else moving when the
+    intensity range over ``images`` exceeds ``photometric``, else counted: edges come later
+    from ``mean``) and the spreads (NaN unless counted). The loops are element-wise: they
+    vectorise without reassociation, so an unchanging pixel has a spread of exactly 0.
+    """
+    status_map, r_map, rz_map = maps
+    frames = len(disparities)
+    height, width = mean.shape
+    with_images = len(images) == frames
+    total = np.empty(width, np.float64)
+    total_z = np.empty(width, np.float64)
+    square = np.empty(width, np.float64)
+    square_z = np.empty(width, np.float64)
+    valid = np.empty(width, np.float64)
+    values = np.empty((frames, width), np.float64)
+    depths = np.empty((frames, width), np.float64)
+    low = np.empty(width, np.int32)
+    high = np.empty(width, np.int32)
+    for y in range(height):
+        total[:] = 0.0
+        total_z[:] = 0.0
+        valid[:] = 0.0
+        for f in range(frames):  # each frame's row once: values, depths and their totals
+            row = disparities[f][y]
+            d_row = values[f]
+            z_row = depths[f]
+            for x in range(width):
+                d = np.float64(row[x])
+                s = d + doffs
+                ok = s > 0.0
+                d_row[x] = d if ok else 0.0
+                z_row[x] = fb / s if ok else 0.0
+                valid[x] += 1.0 if ok else 0.0
+                total[x] += d_row[x]
+                total_z[x] += z_row[x]
+        for x in range(width):
+            total[x] /= frames
+            total_z[x] /= frames
+        square[:] = 0.0
+        square_z[:] = 0.0
+        for f in range(frames):  # squared deviations from the mean: no cancellation
+            d_row = values[f]
+            z_row = depths[f]
+            for x in range(width):
+                deviation = d_row[x] - total[x]
+                deviation_z = z_row[x] - total_z[x]
+                square[x] += deviation * deviation
+                square_z[x] += deviation_z * deviation_z
+        low[:] = 256
+        high[:] = -1
+        if with_images:
+            for f in range(frames):
+                grey = images[f][y]
+                for x in range(width):
+                    low[x] = min(low[x], np.int32(grey[x]))
+                    high[x] = max(high[x], np.int32(grey[x]))
+        for x in range(width):
+            complete = valid[x] == frames
+            moving = np.float64(high[x] - low[x]) > photometric
+            mean[y, x] = np.float32(total[x]) if complete else np.float32(np.nan)
+            status_map[y, x] = MISSING if not complete else (MOVING if moving else COUNTED)
+            counted = complete and not moving
+            r_map[y, x] = np.sqrt(square[x] / (frames - 1)) if counted else np.nan
+            rz_map[y, x] = np.sqrt(square_z[x] / (frames - 1)) if counted else np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def flicker_sums(
+    edges: np.ndarray,
+    cells: np.ndarray,
+    thresholds: np.ndarray,
+    sums: np.ndarray,
+    maps: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:  # pragma: no cover - compiled
+    """Mark counted pixels near an edge of the mean map (before moving) and add every cell."""
+    status_map, r_map, rz_map = maps
+    height, width = edges.shape
+    for y in range(height):
+        for x in range(width):
+            if edges[y, x] and status_map[y, x] != MISSING:
+                status_map[y, x] = EDGE
+                r_map[y, x] = np.nan
+                rz_map[y, x] = np.nan
+        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
