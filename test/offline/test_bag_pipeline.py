@@ -241,7 +241,10 @@ def test_killed_run_resumes_to_the_same_database(how: str, jobs: str, tmp_path: 
     assert not group_alive(process.pid), "a process of the killed run is still running"
     if how != "SIGKILL":  # a clean stop: one line, no traceback
         text = err.decode(errors="replace")
-        assert process.returncode == (143 if how == "SIGTERM" else 130), text
+        # exit status 128 + n, or (seen once in 16 loaded SIGINT runs, the line printed, no
+        # traceback) death by the signal itself: a shell's $? is 128 + n for both
+        number = getattr(signal, how)
+        assert process.returncode in (128 + number, -number), text
         assert text.count("\n") == 1, text
         assert "Traceback" not in text
     resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, check=False)
