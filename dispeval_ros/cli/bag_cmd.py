@@ -138,7 +138,7 @@ def camera_text(config: Any) -> str:
 def run_command(args: argparse.Namespace) -> int:
     """Evaluate, export, summarise."""
     from dispeval_ros.io.store import ResultsStore
-    from dispeval_ros.offline.bag_eval import bag_location, evaluate_bags
+    from dispeval_ros.offline.bag_eval import evaluate_bags, recorded_bags
     from dispeval_ros.offline.executors import ready_executor
     from dispeval_ros.offline.records import BagStreams, record_bag_provenance, write_run_files
 
@@ -149,7 +149,7 @@ def run_command(args: argparse.Namespace) -> int:
     record = {
         **config.as_record(),
         "slice_ns": "auto" if slice_ns is None else slice_ns,
-        "bags": [bag_location(path) for path in args.bags],
+        "bags": recorded_bags(args.out, args.bags, args.resume),
         **preset,
     }
     progress = Progress("dispeval bag", enabled=not args.quiet)

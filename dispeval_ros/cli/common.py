@@ -34,9 +34,36 @@ def comma_list(text: str) -> list[str]:
     return [part for part in text.replace(",", " ").split() if part]
 
 
-#: The defaults of --missing and --delta (``eval --protocol`` refuses any other value: unused).
+#: The defaults of --missing and --delta.
 DEFAULT_MISSING = "interpolate"
 DEFAULT_DELTA = 1.0
+
+_GIVEN = "_options_given"
+
+
+class Given(argparse.Action):
+    """Store the value and note that the option was written out.
+
+    A ``--protocol`` that overrides an option refuses it whenever it is given, its default
+    value written out (``--delta 1``) included: comparing with the default cannot tell.
+    """
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        """Store ``values`` as ``store`` does and add the option to the ones given."""
+        setattr(namespace, self.dest, values)
+        setattr(namespace, _GIVEN, {*getattr(namespace, _GIVEN, ()), self.dest})
+
+
+def given(args: argparse.Namespace, *dests: str) -> list[str]:
+    """The options among ``dests`` (argparse names) written on the command line, in order."""
+    written: set[str] = getattr(args, _GIVEN, set())
+    return ["--" + dest.replace("_", "-") for dest in dests if dest in written]
 
 
 def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
@@ -45,6 +72,7 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--criteria",
         nargs="+",
+        action=Given,
         default=list(DEFAULT_CRITERIA),
         metavar="SET",
         help=f"criterion sets: {', '.join(CRITERION_SETS)} (default: {' '.join(DEFAULT_CRITERIA)}); "
@@ -53,24 +81,35 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--measures",
         nargs="+",
+        action=Given,
         default=None,
         metavar="M",
         help=f"measures (default: all): {registry.listing()}",
     )
     group.add_argument(
         "--missing",
+        action=Given,
         choices=sorted(POLICIES),
         default=DEFAULT_MISSING,
         help="missing-estimate policy (default: interpolate, KITTI's background interpolation)",
     )
     group.add_argument(
-        "--delta", type=float, default=DEFAULT_DELTA, help="bad-pixel threshold δ in px (default 1)"
+        "--delta",
+        type=float,
+        action=Given,
+        default=DEFAULT_DELTA,
+        help="bad-pixel threshold δ in px (default 1)",
     )
     group.add_argument(
-        "--mu", type=float, default=0.01, help="SZE division guard μ in px (default 0.01)"
+        "--mu",
+        type=float,
+        action=Given,
+        default=0.01,
+        help="SZE division guard μ in px (default 0.01)",
     )
     group.add_argument(
         "--depth-ranges",
+        action=Given,
         default=None,
         metavar="A-B,...",
         help="metric depth criteria instead of 3-means, e.g. 0-10,10-30,30-inf (camera unit)",
@@ -160,6 +199,7 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
     parser.add_argument(
         "--objective-measures",
         nargs="+",
+        action=Given,
         default=None,
         metavar="M",
         help="measures that form the objectives, each on the criteria it is defined on "

@@ -96,11 +96,11 @@ def run_command(args: argparse.Namespace) -> int:
     summary_config = SummarizerConfig(
         args.out, args.objective_measures, args.objectives, args.summary_every, args.resume
     )
-    check_out(args.out, args.resume)
+    record = live_record(config)
+    check_out(args.out, args.resume, record)
     uri = environment.configure(args.dds_config)
     domain = environment.domain_id(args.domain_id)
     environment.require_cyclonedds()
-    record: dict[str, object] = {"source": "dispeval live (DDS)", **config.as_record()}
     warm_up(config)
     session = LiveSession(
         domain,
@@ -131,18 +131,29 @@ def run_command(args: argparse.Namespace) -> int:
     return _report(session, summary, args.out)
 
 
-def check_out(out: Path, resume: bool) -> None:
-    """``--out`` can take this run's results: refused now, not once the transport is up."""
+def live_record(config: Any) -> dict[str, object]:
+    """The run record of a ``live`` run (what ``--resume`` must find again)."""
+    return {"source": "dispeval live (DDS)", **config.as_record()}
+
+
+def check_out(out: Path, resume: bool, record: dict[str, object]) -> None:
+    """``--out`` can take this run's results: refused now, not once the transport is up.
+
+    Results there need ``--resume``, and with it the same configuration (``record``).
+    """
     from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
 
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} is a file; expected a results folder")
     path = out / RESULTS_FILE
-    if resume or not path.is_file() or path.stat().st_size == 0:
+    if not path.is_file() or path.stat().st_size == 0:
         return
     with ResultsStore.open(path) as store:  # a damaged or foreign file is one line here too
-        if store.holds_units():
+        if not store.holds_units():
+            return
+        if not resume:
             raise ResultsConflictError(f"{out} already holds results", resumable=True)
+        store.check_resumable(record)
 
 
 def _warn(message: str) -> None:

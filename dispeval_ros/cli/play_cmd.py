@@ -30,11 +30,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--transport", default="dds", help="'dds' (Cyclone DDS); the only one")
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument(
-        "--rate", type=float, default=1.0, help="speed factor of the recorded timing (default 1)"
+        "--rate",
+        type=float,
+        default=1.0,
+        help="speed factor of the recorded timing, a finite number > 0 (default 1; not inf: "
+        "use --fast)",
     )
     timing.add_argument("--fast", action="store_true", help="as fast as possible")
     parser.add_argument(
-        "--topics", nargs="+", metavar="TOPIC", help="only these topics (default: all)"
+        "--topics",
+        nargs="+",
+        metavar="TOPIC",
+        help="only these topics, all in the bag (default: all)",
     )
     parser.add_argument("--loop", action="store_true", help="play again and again until stopped")
     parser.add_argument(
@@ -57,16 +64,17 @@ def run_command(args: argparse.Namespace) -> int:
             f"--transport {args.transport} is not available; use --transport dds "
             "(with ROS 2 installed, use ros2 bag play)"
         )
+    from dispeval_ros.dds.player import check_rate, played_topics
+    from dispeval_ros.io.bags import BagSource
+
     rate = None if args.fast else args.rate
-    if rate is not None and not rate > 0:
-        raise ConfigurationError(f"--rate must be positive, got {args.rate}")
+    check_rate(rate)
     if not (math.isfinite(args.wait_matched) and args.wait_matched >= 0):
         raise ConfigurationError(
             f"--wait-matched must be a number of seconds ≥ 0, got {args.wait_matched}"
         )
-    from dispeval_ros.io.bags import BagSource
-
-    BagSource(args.bag).close()  # a bad path is reported before the transport is needed
+    with BagSource(args.bag) as source:  # a bad path or topic, before the transport is needed
+        played_topics(source, args.topics)
     uri = environment.configure(args.dds_config)
     domain = environment.domain_id(args.domain_id)
     environment.require_cyclonedds()

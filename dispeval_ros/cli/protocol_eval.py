@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dispeval_ros.cli.common import DEFAULT_DELTA, DEFAULT_MISSING
+from dispeval_ros.cli.common import given
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text
 from dispeval_ros.core.protocols import PROTOCOLS, Protocol, get_protocol
@@ -37,7 +37,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         help="evaluate as the benchmark does: regions, measures, invalid handling and the "
         "official tool's float32 arithmetic; --scene is then a dataset tree (or one scene) and "
         "--est NAME=RESULTS_DIR a method's results laid out as the benchmark expects "
-        f"(--est NAME alone: {_in_tree_results()}; every layout: README 'Reproduce a benchmark')",
+        f"(--est NAME alone: {_in_tree_results()}; every layout: README 'Reproduce a benchmark'); "
+        "--criteria, --measures, --missing, --delta, --mu and --depth-ranges do not apply and "
+        "are refused",
     )
     group.add_argument(
         "--gt-noc", type=Path, help="KITTI: the non-occluded GT (disp_noc) of a --gt frame"
@@ -108,17 +110,28 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: What a benchmark's protocol uses instead of each project option it overrides.
+PROTOCOL_OWN = {
+    "criteria": "its own regions",
+    "measures": "its own measures",
+    "missing": "its own invalid-estimate handling",
+    "delta": "its own thresholds",
+    "mu": "its own measures (no SZE)",
+    "depth_ranges": "its own regions",
+}
+
+
 def _refuse_unused_options(args: argparse.Namespace, protocol: Protocol) -> None:
-    """``--delta`` and ``--missing`` set the project's measures, never a benchmark's: refused."""
-    for option, value, default in (
-        ("--delta", args.delta, DEFAULT_DELTA),
-        ("--missing", args.missing, DEFAULT_MISSING),
-    ):
-        if value != default:
-            raise ConfigurationError(
-                f"{option} does not apply with --protocol: {protocol.name} uses its own "
-                "thresholds and invalid-estimate handling (drop the option)"
-            )
+    """The project's evaluation options never set a benchmark's numbers: refused if given.
+
+    Whatever the value: ``--delta 1`` (the default written out) is refused as ``--delta 2``.
+    """
+    unused = given(args, *PROTOCOL_OWN)
+    if unused:
+        raise ConfigurationError(
+            f"{unused[0]} does not apply with --protocol: {protocol.name} uses "
+            f"{PROTOCOL_OWN[unused[0][2:].replace('-', '_')]} (drop the option)"
+        )
 
 
 def _cell(protocol: Protocol, column: str, value: float) -> str:
@@ -212,9 +225,19 @@ def add_stream_option(parser: argparse.ArgumentParser) -> None:
         "--protocol",
         choices=list(PROTOCOLS),
         help="use a benchmark's measures, thresholds and invalid-estimate handling over 'all' "
-        "(replaces --criteria, --measures, --missing, --objective-measures; exact arithmetic: "
+        "(sets what --criteria, --measures, --missing, --objective-measures would: they are "
+        "refused with it; exact arithmetic: "
         "bags carry no official masks, see README 'Reproduce a benchmark')",
     )
+
+
+#: What a stream preset sets in place of each option it replaces (refused when written out).
+STREAM_PRESET_SETS = {
+    "criteria": "the criteria",
+    "measures": "the measures",
+    "missing": "the invalid-estimate handling",
+    "objective_measures": "the objective measures",
+}
 
 
 def apply_stream_preset(args: argparse.Namespace) -> dict[str, object]:
@@ -224,6 +247,12 @@ def apply_stream_preset(args: argparse.Namespace) -> dict[str, object]:
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.protocols import stream_preset
 
+    replaced = given(args, *STREAM_PRESET_SETS)
+    if replaced:
+        raise ConfigurationError(
+            f"{replaced[0]} does not apply with --protocol {args.protocol}: the preset sets "
+            f"{STREAM_PRESET_SETS[replaced[0][2:].replace('-', '_')]} (drop the option)"
+        )
     preset = stream_preset(args.protocol)
     args.criteria = list(preset.criteria)
     args.measures = list(preset.measures)

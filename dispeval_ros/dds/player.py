@@ -20,6 +20,7 @@ volatile (``ros2 bag play``'s default), which matches reliable and best-effort s
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -39,7 +40,8 @@ from dispeval_ros.dds.wire import (
     ros_topic_name,
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
-from dispeval_ros.io.bags import BagSource, TopicInfo, require_topic
+from dispeval_ros.io.bags import BagSource, TopicInfo
+from dispeval_ros.io.bags.common import missing_topic
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -190,6 +192,29 @@ def _convert_value(typestore: Typestore, node: Any, value: Any) -> Any:
     return np.asarray(value, dtype=dtype)
 
 
+def played_topics(source: BagSource, topics: Sequence[str] | None) -> list[str]:
+    """The topics to play: the bag's (``topics`` None or empty) or ``topics``, all in the bag.
+
+    Checked before any writer exists: one line names every topic the bag lacks and the ones
+    it has, instead of publishing the others or stopping at the first.
+    """
+    if not topics:
+        return list(source.topics)
+    wanted = list(dict.fromkeys(topics))
+    missing = [topic for topic in wanted if topic not in source.topics]
+    if missing:
+        raise missing_topic(source.path, ", ".join(missing), source.topics)
+    return wanted
+
+
+def check_rate(rate: float | None) -> None:
+    """A play rate is a finite factor > 0; None (not infinity) is "as fast as possible"."""
+    if rate is not None and not (math.isfinite(rate) and rate > 0):
+        raise ConfigurationError(
+            f"--rate must be a finite number > 0 (--fast plays as fast as possible), got {rate}"
+        )
+
+
 class BagPlayer:
     """Writers for a bag's topics on a transport; :meth:`play` publishes them on time."""
 
@@ -204,8 +229,9 @@ class BagPlayer:
         self.path = Path(path)
         with BagSource(self.path) as source:
             self.format = source.format
-            wanted = list(topics) if topics else list(source.topics)
-            infos: dict[str, TopicInfo] = {t: require_topic(source, t, []) for t in wanted}
+            infos: dict[str, TopicInfo] = {
+                t: source.topics[t] for t in played_topics(source, topics)
+            }
         self.raw = self.format in RAW_FORMATS
         self._source = self._open()
         try:
@@ -275,8 +301,7 @@ class BagPlayer:
         on_message: Callable[[str, int], None] | None = None,
     ) -> int:
         """Publish every message (again and again with ``loop``); returns how many."""
-        if rate is not None and not rate > 0:
-            raise ConfigurationError(f"the play rate must be positive, got {rate}")
+        check_rate(rate)
         stop = stop or threading.Event()
         topics = list(self.topics)
         while not stop.is_set():

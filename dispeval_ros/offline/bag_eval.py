@@ -19,7 +19,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
 from dispeval_ros.offline.executors import Executor, make_executor
 from dispeval_ros.offline.units import (
     DEFAULT_SLICE_NS,
@@ -46,6 +47,7 @@ __all__ = [
     "evaluate_bags",
     "evaluate_unit",
     "plan_units",
+    "recorded_bags",
     "sequence_names",
 ]
 
@@ -73,6 +75,47 @@ def bag_location(path: Path) -> str:
     spelling (or folder) continues the run, and only another bag is refused.
     """
     return str(Path(path).resolve())
+
+
+def recorded_bags(out: Path, bags: Sequence[Path], resume: bool) -> list[str]:
+    """The run record's bags: :func:`bag_location` of each, or an older database's spelling.
+
+    Databases written before :func:`bag_location` hold the paths as typed. On ``--resume`` a
+    stored path naming the same bag (resolved from the current folder: relative paths were
+    typed there) keeps its spelling, so the record still matches; a relative one that names
+    another bag from here is refused in one line saying where to resume from.
+    """
+    locations = [bag_location(path) for path in bags]
+    stored = _stored_bags(out) if resume else None
+    if stored is None or len(stored) != len(locations):
+        return locations
+    recorded = []
+    for old, new in zip(stored, locations, strict=True):
+        if old != new and Path(old).resolve() == Path(new):
+            recorded.append(old)  # the same bag, spelled as an older dispeval stored it
+            continue
+        if not Path(old).is_absolute():
+            raise ConfigurationError(
+                f"{out} names bag '{old}' as typed (an older dispeval), relative to the folder "
+                f"that run started in; from here it is {Path(old).resolve()}, not {new}: run "
+                "--resume from that folder"
+            )
+        recorded.append(new)
+    return recorded
+
+
+def _stored_bags(out: Path) -> list[str] | None:
+    """The bags in the run record of ``out``'s results, if it has a readable one."""
+    if not (out / RESULTS_FILE).is_file():
+        return None
+    try:
+        with ResultsStore.open(out) as store:
+            bags = store.config().get("bags")
+    except DispevalError:  # creating the store reports what is wrong with it
+        return None
+    if isinstance(bags, list) and all(isinstance(bag, str) for bag in bags):
+        return bags
+    return None
 
 
 def plan_units(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> list[Unit]:

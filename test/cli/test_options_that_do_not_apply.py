@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from refusal_support import assert_refused
 
 from dispeval_ros.cli import streams
 from dispeval_ros.cli.main import build_parser, main
@@ -59,4 +60,63 @@ def test_camera_info_naming_an_image_topic_exits_2_before_reading(
     assert code == 2
     assert "--camera-info LEFT /left is also the ground-truth, an image or a disparity topic" in err
     assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "option",
+    [
+        ("--delta", "1"),  # the default, written out: refused as any other value
+        ("--delta", "2"),
+        ("--missing", "interpolate"),
+        ("--missing", "ignore"),
+        ("--criteria", "all"),
+        ("--measures", "bmp"),
+        ("--mu", "0.01"),
+        ("--depth-ranges", "0-10"),
+    ],
+)
+def test_eval_protocol_refuses_a_project_option_whatever_its_value(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: tuple[str, str]
+) -> None:
+    argv = ["eval", "--protocol", "middeval3", "--scene", str(tmp_path), "--est", "X", *option]
+    code = main(argv)
+    assert_refused(code, capsys.readouterr().err, f"{option[0]} does not apply with --protocol")
+
+
+def test_eval_protocol_without_project_options_goes_on(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The control: left out, no option is reported (the empty scene folder is what stops)."""
+    code = main(["eval", "--protocol", "middeval3", "--scene", str(tmp_path), "--est", "X"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "does not apply" not in err
+
+
+@pytest.mark.parametrize(
+    "option",
+    [
+        ("--missing", "interpolate"),
+        ("--criteria", "all"),
+        ("--measures", "bad_2"),
+        ("--objective-measures", "bad_2"),
+    ],
+)
+def test_bag_protocol_refuses_an_option_its_preset_sets(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: tuple[str, str]
+) -> None:
+    """The preset sets these: one given is refused (the default written out too), nothing made."""
+    argv = [
+        "bag",
+        str(tmp_path / "absent.mcap"),
+        "--gt",
+        "/gt",
+        *METHODS,
+        "--protocol",
+        "kitti2012",
+    ]
+    code = main([*argv, "--out", str(tmp_path / "out"), *option])
+    err = capsys.readouterr().err
+    assert_refused(code, err, f"{option[0]} does not apply with --protocol kitti2012")
     assert not (tmp_path / "out").exists()

@@ -10,11 +10,14 @@ from pathlib import Path
 
 import pytest
 from bag_support import bag_args
-from refusal_support import assert_refused
+from refusal_support import assert_refused, snapshot
 
-from dispeval_ros.cli.main import main
+from dispeval_ros.cli import streams
+from dispeval_ros.cli.live_cmd import live_record
+from dispeval_ros.cli.main import build_parser, main
 from dispeval_ros.dds import environment
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC, synthetic_frames, write_bag
 
 NO_TRANSPORT = "the DDS transport needs the Cyclone DDS Python binding (test)"
@@ -78,6 +81,9 @@ def test_good_options_reach_the_transport(
         (("--wait-matched", "-1"), "--wait-matched"),
         (("--rate", "nan"), "--rate"),
         (("--rate", "0"), "--rate"),
+        (("--rate", "inf"), "--fast plays as fast as possible"),
+        (("--rate=-1",), "--rate"),
+        (("--rate", "1e400"), "--rate"),
         (("--domain-id", "-1"), "out of range"),
     ],
 )
@@ -116,4 +122,52 @@ def test_live_refuses_an_unusable_out_before_the_transport(
         err = capsys.readouterr().err
         assert_refused(code, err, needle)
         assert NO_TRANSPORT not in err
-    assert_refused(main(live(held, "--resume")), capsys.readouterr().err, NO_TRANSPORT)
+
+
+def live_results(out: Path, *extra: str) -> None:
+    """Results of a ``live`` run with these options (one unit stored), as if it had run."""
+    args = build_parser().parse_args(live(out, *extra))
+    with ResultsStore.create(out, live_record(streams.core_config(args, "live streams"))) as store:
+        store.add_unit("live-0", "0", [])
+
+
+def kept(out: Path) -> dict[str, bytes]:
+    """The files of a results folder, but SQLite's -wal/-shm (reading WAL results makes them)."""
+    return {name: data for name, data in snapshot(out).items() if name[-4:] not in ("-wal", "-shm")}
+
+
+def test_live_resume_refuses_another_configuration_before_the_transport(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--resume onto another run's results is refused up front; onto this run's, it goes on."""
+    bag = tmp_path / "drive"
+    write_bag(bag, synthetic_frames(2, 64, 32, 10.0, seed=6))
+    assert main(bag_args(bag, tmp_path / "bag_results", "--slice", "0.2")) == 0
+    live_results(tmp_path / "live_results")
+    capsys.readouterr()
+    for out, extra in (
+        (tmp_path / "bag_results", ()),
+        (tmp_path / "live_results", ("--delta", "2")),
+    ):
+        before = kept(out)
+        code = main(live(out, "--resume", *extra))
+        err = capsys.readouterr().err
+        assert_refused(code, err, f"{out} holds results of another configuration")
+        assert NO_TRANSPORT not in err
+        assert kept(out) == before
+    code = main(live(tmp_path / "live_results", "--resume"))
+    assert_refused(code, capsys.readouterr().err, NO_TRANSPORT)  # the same run: the transport
+
+
+def test_play_names_every_topic_the_bag_lacks_before_the_transport(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = tmp_path / "drive"
+    write_bag(bag, synthetic_frames(2, 64, 32, 10.0, seed=6))
+    code = main(["play", str(bag), "--topics", "/nope", GT_TOPIC, "/nada"])
+    err = capsys.readouterr().err
+    assert_refused(code, err, "has no topic /nope, /nada;", GT_TOPIC)
+    assert NO_TRANSPORT not in err
+    assert_refused(
+        main(["play", str(bag), "--topics", GT_TOPIC]), capsys.readouterr().err, NO_TRANSPORT
+    )

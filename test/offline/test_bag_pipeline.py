@@ -6,6 +6,7 @@ import json
 import os
 import random
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
@@ -164,44 +165,86 @@ def group_alive(pgid: int) -> bool:
     return False
 
 
+def units_stored(database: Path) -> int | None:
+    """How many units a run's database holds now (None: not readable at this moment)."""
+    try:
+        connection = sqlite3.connect(f"file:{database}?mode=ro", uri=True, timeout=0.2)
+        try:
+            return int(connection.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+        finally:
+            connection.close()
+    except sqlite3.Error:  # not created yet, or the writer holds it mid-commit
+        return None
+
+
+def start_interruptible(command: list[str]) -> subprocess.Popen[bytes]:
+    """Start ``command`` in its own session with Ctrl-C at its default.
+
+    A program inherits an ignored SIGINT (pytest started in the background with ``&`` has
+    one) and rightly keeps ignoring it; the child gets the default whatever started pytest.
+    """
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(
+            command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.parametrize(
     ("how", "jobs"),
     [("SIGKILL", "1"), ("SIGKILL", "2"), ("SIGTERM", "2"), ("SIGINT", "2")],
 )
 def test_killed_run_resumes_to_the_same_database(how: str, jobs: str, tmp_path: Path) -> None:
     """Killed, terminated or interrupted at a random moment: --resume gives the same database,
-    and no process of the run is left (pool workers end with their driver)."""
+    and no process of the run is left (pool workers end with their driver).
+
+    The signal goes to a driver frozen (SIGSTOP) while it has stored at least one unit and not
+    all: it is then mid-run whatever the load, so a clean stop must say so (exit 130/143). A
+    driver frozen with every unit stored may be past its last check (exporting, or exiting),
+    where exit 0 is right: that attempt starts over.
+    """
     bag = tmp_path / "long"
     write_bag(bag, synthetic_frames(24, 192, 64, 10.0, seed=2), storage="rosbag2-sqlite3")
     command = [sys.executable, "-m", "dispeval_ros", *bag_args(bag, tmp_path / "killed")]
     command += ["--slice", "0.1", "--jobs", jobs]
     reference = [sys.executable, "-m", "dispeval_ros", *bag_args(bag, tmp_path / "whole")]
     subprocess.run([*reference, "--slice", "0.1"], check=True, capture_output=True)
+    total = units_stored(tmp_path / "whole" / "results.sqlite")
+    assert total is not None
+    assert total > 2
     rng = random.Random(7)
     database = tmp_path / "killed" / "results.sqlite"
     for _attempt in range(20):
-        process = subprocess.Popen(
-            command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
-        )
-        while not database.exists() and process.poll() is None:
+        process = start_interruptible(command)
+        while process.poll() is None and not units_stored(database):
             time.sleep(0.01)
-        time.sleep(rng.uniform(0.0, 0.6))
+        time.sleep(rng.uniform(0.0, 0.3))
         if process.poll() is None:
-            os.kill(process.pid, getattr(signal, how))
-            _, err = process.communicate(timeout=60)
-            break
-        process.wait()  # finished before the kill: start over with a fresh folder
+            os.kill(process.pid, signal.SIGSTOP)
+            stored = units_stored(database) if process.poll() is None else None
+            if stored is not None and 0 < stored < total:
+                os.kill(process.pid, getattr(signal, how))  # pending until it runs again
+                os.kill(process.pid, signal.SIGCONT)
+                _, err = process.communicate(timeout=60)
+                break
+            os.kill(process.pid, signal.SIGCONT)
+        process.communicate(timeout=60)  # finished, or nearly: start over with a fresh folder
         for file in (tmp_path / "killed").iterdir():
             file.unlink()
     else:
-        pytest.fail("the run always finished before it could be killed")
+        pytest.fail("the run was never caught with some of its units stored and not all")
     deadline = time.monotonic() + 10
     while group_alive(process.pid) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not group_alive(process.pid), "a process of the killed run is still running"
     if how != "SIGKILL":  # a clean stop: one line, no traceback
         text = err.decode(errors="replace")
-        assert process.returncode == (143 if how == "SIGTERM" else 130), text
+        # exit status 128 + n, or (seen once in 16 loaded SIGINT runs, the line printed, no
+        # traceback) death by the signal itself: a shell's $? is 128 + n for both
+        number = getattr(signal, how)
+        assert process.returncode in (128 + number, -number), text
         assert text.count("\n") == 1, text
         assert "Traceback" not in text
     resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, check=False)

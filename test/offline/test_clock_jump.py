@@ -161,3 +161,41 @@ def test_resume_knows_the_bag_however_its_path_is_spelled(
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1, error
     assert "'bags'" in error, error
+
+
+def stored_bags(out: Path) -> str:
+    with sqlite3.connect(out / "results.sqlite") as connection:
+        (value,) = connection.execute("SELECT value FROM run WHERE key = 'bags'").fetchone()
+    connection.close()
+    return str(value)
+
+
+def test_resume_of_an_older_database_that_stored_the_path_as_typed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An older dispeval stored ``bags/drive.mcap`` as typed. From the folder it ran in, any
+    spelling of that bag resumes (the record keeps the old spelling); from another folder the
+    relative path names another file, and one line says where to resume from."""
+    monkeypatch.chdir(tmp_path)
+    bag = write_jumped(Path("bags") / "drive.mcap", "mcap")
+    out = Path("out")
+    assert main(bag_args(bag, out, "--slice", "1")) == 0
+    first = scores(out)
+    absolute = stored_bags(out)
+    as_typed = absolute.replace(str(bag.resolve()), str(bag))
+    assert as_typed != absolute
+    with sqlite3.connect(out / "results.sqlite") as connection:
+        connection.execute("UPDATE run SET value = ? WHERE key = 'bags'", (as_typed,))
+    connection.close()
+    for spelling in (bag.resolve(), bag):
+        assert main(bag_args(spelling, out, "--slice", "1", "--resume")) == 0
+        assert scores(out) == first
+        assert stored_bags(out) == as_typed
+    capsys.readouterr()
+    monkeypatch.chdir(tmp_path / "bags")
+    assert main(bag_args(tmp_path / bag, tmp_path / out, "--slice", "1", "--resume")) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1, error
+    assert "names bag 'bags/drive.mcap' as typed" in error, error
+    assert "run --resume from that folder" in error, error
+    assert scores(tmp_path / out) == first

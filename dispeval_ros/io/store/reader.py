@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 import sqlite3
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import TypeVar
@@ -21,7 +21,9 @@ from dispeval_ros.io.store.schema import (
     _FRAME_ORDER,
     _ORDERED_FRAMES,
     RESULTS_FILE,
+    _check_config,
     _check_tables,
+    _config_rows,
     _connect,
     _holds_nothing,
     _Layout,
@@ -123,6 +125,14 @@ class ResultsReader:
     def holds_units(self) -> bool:
         """Whether any unit was written (a run that stopped before its first holds nothing)."""
         return not _holds_nothing(self._db)
+
+    def check_resumable(self, config: Mapping[str, object]) -> None:
+        """Refuse as :meth:`create` with ``resume`` would, without opening for writing.
+
+        A front end that needs a transport or a scheduler first can refuse another
+        configuration's results before it starts them.
+        """
+        _check_config(self._db, self.path.parent, _config_rows(config))
 
     def sequences(self) -> list[str]:
         """Sequence names in first-seen order."""
