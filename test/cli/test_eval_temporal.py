@@ -13,7 +13,12 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
+import re
+import shlex
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -359,3 +364,61 @@ def test_out_stores_the_temporal_scores_with_the_sequence(
         _, info = store.sequence_info(name)
         assert info["temporal"] == temporal
         assert store.config()["temporal"] == "dispeval"
+
+
+# ------------------------------------------------------------------ the README's example
+
+CLONE = Path(__file__).resolve().parents[2]
+
+
+def readme_example() -> tuple[str, list[str], str]:
+    """The example block's Python code, its ``eval`` arguments, and the README text after it."""
+    text = (CLONE / "README.md").read_text(encoding="utf-8")
+    match = re.search(
+        r"<!-- temporal-example -->\n```bash\n(.*?)```\n<!-- /temporal-example -->\n", text, re.S
+    )
+    assert match, "README.md has no temporal-example block"
+    block = match.group(1)
+    code = re.search(r'python -c "(.*?)"\n', block, re.S)
+    assert code
+    command = shlex.split(block[block.index("dispeval eval") :].replace("\\\n", " "))
+    after = text[match.end() :]
+    return code.group(1), command[2:], after[: after.index("\n## ")]
+
+
+def test_the_readme_example_prints_the_readme_numbers(
+    capsys: pytest.CaptureFixture[str], scene: Path, tmp_path: Path, monkeypatch
+) -> None:
+    code, argv, text = readme_example()
+    (tmp_path / SCENE).symlink_to(scene)
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(CLONE), *sys.path])}
+    subprocess.run([sys.executable, "-c", code], cwd=tmp_path, check=True, env=environment)
+    monkeypatch.chdir(tmp_path)
+    ours = json.loads(run(capsys, *argv, "--json")[1])
+    theirs = temporal_json(capsys, *argv, "dynamicstereo")
+    rows = {line.split("|")[1].strip(): line.split("|")[2:-1] for line in text.splitlines()
+            if line.startswith(("| sgbm ", "| bm_fast "))}  # fmt: skip
+    assert list(rows) == ["sgbm", "bm_fast"]
+    for method, cells in rows.items():
+        values = ours["temporal"]["methods"][method]["criteria"]["all"]
+        shown = [values["tepe"], values["tepe_r"], values["tepe_bmp"]]
+        assert [c.strip() for c in cells[:3]] == [f"{v:.2f}" for v in shown]
+        bad = [values[f"tepe_bad_{t}"] for t in ("0.5", "2", "4")]
+        assert cells[3].strip() == " / ".join(f"{v:.2f}" for v in bad)
+        mae = [e["criteria"]["all"]["mae"] for e in ours["frames"] if e["method"] == method]
+        assert cells[4].strip() == ", ".join(f"{v:.2f}" for v in mae)
+        assert values["n_pair"] == 1036800
+    methods = ours["temporal"]["methods"]
+    text = " ".join(text.split())  # the sentences, whatever their line breaks
+    zeros = [int(m["sums"]["all"]["n_pair_eval"] - m["sums"]["all"]["n_pair_nonzero"])
+             for m in methods.values()]  # fmt: skip
+    assert f"only {zeros[0]} and {zeros[1]} of the 1036800 pixel pairs" in text
+    tepe = " / ".join(f"{m['criteria']['all']['tepe']:.2f}" for m in theirs["methods"].values())
+    bad3 = " / ".join(
+        f"{m['criteria']['all']['tepe_bad_3']:.2f}" for m in theirs["methods"].values()
+    )
+    assert f"`tepe` {tepe} px too" in text
+    assert f"`tepe_bad_3` {bad3} %" in text
+    sgbm = methods["sgbm"]["criteria"]
+    assert f"(sgbm {sgbm['interior']['tepe']:.2f} px)" in text
+    assert f"most ({sgbm['occluded']['tepe']:.2f} px)" in text
