@@ -521,7 +521,7 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         frames = [_files_frame(args, estimates)]
-    pairs = temporal_eval.plan(args, [(f.frame, f.estimates) for f in frames])
+    pairs = temporal_eval.plan(args, [(f.frame, f.gt_source, f.estimates) for f in frames])
     if len(frames) > 1:
         one_file = [
             option

@@ -33,6 +33,7 @@ from dispeval_ros.core.temporal import (
     pair_unit,
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.io.scene_frames import GT_SOURCE_TEXT
 
 Estimates = Sequence[tuple[str, Path]]
 """A frame's estimates: method and file."""
@@ -82,6 +83,9 @@ class Gap:
     unscored: int
     """Frame numbers in the gap that no method was scored on (not in the folder, or no
     estimate of any method)."""
+    sources: tuple[str, str] | None = None
+    """The GT sources of the frames around it, when they differ (a pair would compare two
+    different references)."""
 
     def text(self) -> str:
         """``sgbm: no pair 0006 → 0008: no estimate of frame 0007``."""
@@ -90,6 +94,10 @@ class Gap:
             reasons.append(f"no estimate of frame {', '.join(self.missing)}")
         if self.unscored:
             reasons.append(f"{plural(self.unscored, 'frame number')} between not scored")
+        if self.sources is not None:
+            reasons.append(
+                f"the ground truth changes from {' to '.join(map(_source, self.sources))}"
+            )
         if self.after is None or self.before is None:
             return f"{self.method}: {'; '.join(reasons)} (fewer pairs)"
         return f"{self.method}: no pair {self.after} → {self.before}: {'; '.join(reasons)}"
@@ -102,6 +110,7 @@ class Gap:
             "before": self.before,
             "missing": list(self.missing),
             "unscored": self.unscored,
+            "gt_sources": None if self.sources is None else list(self.sources),
             "text": self.text(),
         }
 
@@ -135,11 +144,21 @@ def _numbers(folder: Path, names: Sequence[str]) -> list[int]:
     return numbers
 
 
-def plan(args: argparse.Namespace, frames: Sequence[tuple[str | None, Estimates]]) -> Plan | None:
-    """The pairs ``--temporal`` scores (None without it); one line if there are none."""
+def _source(source: str) -> str:
+    return GT_SOURCE_TEXT.get(source, source)
+
+
+def plan(
+    args: argparse.Namespace, frames: Sequence[tuple[str | None, str | None, Estimates]]
+) -> Plan | None:
+    """The pairs ``--temporal`` scores (None without it); one line if there are none.
+
+    ``frames``: each scored frame's name, GT source and estimates, in the scene's order.
+    """
     if args.temporal is None:
         return None
-    names = [name or "" for name, _ in frames]
+    names = [name or "" for name, _, _ in frames]
+    sources = [source or "" for _, source, _ in frames]
     if len(names) < 2:
         chosen = " (--frame chose it)" if args.frame is not None else ""
         raise ConfigurationError(
@@ -148,7 +167,7 @@ def plan(args: argparse.Namespace, frames: Sequence[tuple[str | None, Estimates]
         )
     numbers = _numbers(args.scene, names)
     files: dict[str, dict[int, Path]] = {}
-    for index, (_, estimates) in enumerate(frames):
+    for index, (_, _, estimates) in enumerate(frames):
         for method, path in estimates:
             files.setdefault(method, {})[index] = path
     runs: dict[str, list[list[int]]] = {}
@@ -160,11 +179,13 @@ def plan(args: argparse.Namespace, frames: Sequence[tuple[str | None, Estimates]
         if indices[0] > 0:
             gaps.append(Gap(method, None, names[indices[0]], tuple(names[: indices[0]]), 0))
         for a, b in itertools.pairwise(indices):
-            if numbers[b] == numbers[a] + 1:
+            changes = None if sources[a] == sources[b] else (sources[a], sources[b])
+            if numbers[b] == numbers[a] + 1 and changes is None:
                 runs[method][-1].append(b)
                 continue
             unscored = numbers[b] - numbers[a] - (b - a)
-            gaps.append(Gap(method, names[a], names[b], tuple(names[a + 1 : b]), unscored))
+            missing = tuple(names[a + 1 : b])
+            gaps.append(Gap(method, names[a], names[b], missing, unscored, changes))
             runs[method].append([b])
         if indices[-1] < last:
             gaps.append(Gap(method, names[indices[-1]], None, tuple(names[indices[-1] + 1 :]), 0))

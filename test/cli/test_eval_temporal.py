@@ -292,6 +292,52 @@ def test_a_missing_middle_estimate_splits_the_runs_and_is_reported(
 # ------------------------------------------------------------------ bad input, options, storing
 
 
+def test_a_change_of_ground_truth_source_ends_a_run(
+    capsys: pytest.CaptureFixture[str], shared_data: Path, tmp_path: Path
+) -> None:
+    """KITTI LiDAR frames 000010–000012 (000010's scan and images thrice): 000010 has its
+    official map, the others only the scan, so ``auto`` scores 000010 against the map and the
+    others against the scan; no pair crosses the change."""
+    source = shared_data / "kitti-lidar"
+    folder = tmp_path / "drive"
+    for sub in ("velodyne_points", "image_02", "image_03", "gt/disp_occ_0"):
+        (folder / sub).mkdir(parents=True)
+    (tmp_path / "calib").symlink_to(source / "raw-calib-2011_09_26")
+    kitti = source / "kitti2015-with-velodyne"
+    for frame in ("000010", "000011", "000012"):
+        shutil.copy(
+            kitti / "velodyne_points" / "000010.bin", folder / "velodyne_points" / f"{frame}.bin"
+        )
+        for side in ("image_02", "image_03"):
+            shutil.copy(kitti / side / "000010.png", folder / side / f"{frame}.png")
+    shutil.copy(kitti / "gt" / "disp_occ_0" / "000010.png", folder / "gt" / "disp_occ_0")
+    estimate = kitti / "prediction" / "000010.png"
+    estimates = tmp_path / "psmnet"
+    estimates.mkdir()
+    for frame in ("000010", "000011", "000012"):
+        shutil.copy(estimate, estimates / f"{frame}.png")
+    argv = ["--scene", str(folder), "--est", f"psmnet={estimates}", *ALL, "--temporal"]
+    code, out, err = run(capsys, *argv, "--json")
+    assert code == 0, err
+    document = json.loads(out)
+    assert [f["gt_source"] for f in document["frames"]] == ["official", "scan", "scan"]
+    temporal = document["temporal"]
+    assert temporal["methods"]["psmnet"]["runs"] == [["000010"], ["000011", "000012"]]
+    assert temporal["methods"]["psmnet"]["pairs"] == 1
+    [gap] = temporal["gaps"]
+    assert gap["gt_sources"] == ["official", "scan"]
+    # the same scan and estimate twice: nothing changes from 000011 to 000012
+    scores = temporal["methods"]["psmnet"]["criteria"]["all"]
+    assert scores["n_pair"] > 10000
+    assert scores["tepe"] == 0.0
+    code, out, _ = run(capsys, *argv)
+    assert code == 0
+    assert (
+        "gap: psmnet: no pair 000010 → 000011: the ground truth changes from official GT map to "
+        "projected LiDAR scan" in " ".join(out.split())
+    )
+
+
 @pytest.mark.parametrize(
     ("where", "extra", "words"),
     [
@@ -310,6 +356,32 @@ def test_a_one_frame_scene_is_one_line_exit_2(
     assert (code, out) == (2, "")
     assert len(err.strip().splitlines()) == 1
     assert "--temporal scores pairs of consecutive frames" in err
+    assert words in err
+
+
+@pytest.mark.parametrize(
+    ("names", "words"),
+    [
+        (("000010", "pose"), "frame pose of"),
+        (("000010", "000012"), "no method has estimates of two consecutive frames"),
+    ],
+)
+def test_unnumbered_or_unpaired_frames_are_one_line_exit_2(
+    capsys: pytest.CaptureFixture[str], shared_data: Path, tmp_path: Path, names, words: str
+) -> None:
+    """A TartanAir folder of two frames (its one frame twice) with an estimate of each."""
+    source = shared_data / "tartanair-oldtown"
+    shutil.copy(source / "Q.dat", tmp_path / "Q.dat")
+    estimates = tmp_path / "est"
+    estimates.mkdir()
+    for name in names:
+        shutil.copy(source / "001116_left_disp.npy", tmp_path / f"{name}_left_disp.npy")
+        shutil.copy(source / "001116_left_disp.npy", estimates / f"{name}.npy")
+    argv = ("--scene", str(tmp_path), "--est", f"m={estimates}", *ALL)
+    assert run(capsys, *argv)[0] == 0
+    code, out, err = run(capsys, *argv, "--temporal")
+    assert (code, out) == (2, "")
+    assert len(err.strip().splitlines()) == 1
     assert words in err
 
 
