@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dispeval_ros.cli import common, protocol_eval
+from dispeval_ros.cli import common, protocol_eval, temporal_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, ModelResult, Reference, Scores, evaluate_models
@@ -111,6 +111,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     common.add_evaluation_options(parser)
     common.add_camera_options(parser)
     protocol_eval.add_options(parser)
+    temporal_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument(
         "--out",
@@ -194,6 +195,8 @@ def _provenance(
         configuration["frames"] = [
             {"frame": s.frame.frame, "gt_source": s.frame.gt_source} for s in scored
         ]
+    if args.temporal is not None:
+        configuration["temporal"] = args.temporal
     return provenance_record(configuration, {"files": files_sha256(inputs)})
 
 
@@ -411,7 +414,10 @@ def _document(args: argparse.Namespace, evaluator: Evaluator, scored: _Scored) -
 
 
 def _write_out(
-    args: argparse.Namespace, scored: list[_Scored], provenance: dict[str, object]
+    args: argparse.Namespace,
+    scored: list[_Scored],
+    provenance: dict[str, object],
+    temporal: dict[str, object] | None,
 ) -> str:
     """Write ``--out`` as a bag run's results folder; the line saying what was written."""
     from dispeval_ros.core.records import FrameScores
@@ -432,6 +438,7 @@ def _write_out(
             for stamp, one in enumerate(scored)
         ],
         "camera": _camera_dict(scored[0].frame.camera),
+        **({} if temporal is None else {"temporal": temporal}),
     }
     files = write_scored_folder(
         args.out, sequence, bag_location(where), info, frames, provenance
@@ -482,6 +489,7 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.io import read_disparity, read_mask
 
     scene_only = [o for o, v in (("--frame", args.frame), ("--gt-source", args.gt_source)) if v]
+    temporal_eval.check_options(args)
     if args.protocol is not None:
         if args.out is not None:
             raise ConfigurationError(
@@ -513,6 +521,7 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         frames = [_files_frame(args, estimates)]
+    pairs = temporal_eval.plan(args, [(f.frame, f.gt_source, f.estimates) for f in frames])
     if len(frames) > 1:
         one_file = [
             option
@@ -549,10 +558,13 @@ def run(args: argparse.Namespace) -> int:
     roi_names = _roi_names(args.roi_labels)
     evaluator = common.evaluator_from_args(args, roi_names)
     scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
+    references = [s.reference for s in scored]
+    temporal = temporal_eval.score(pairs, evaluator, references, args.est_scale)
+    result = None if temporal is None else temporal.to_dict()
     inputs = [path for s in scored for path in s.frame.inputs]
     wanted = args.json or args.out is not None  # the text alone hashes nothing
     provenance = _provenance(args, evaluator, scored, inputs) if wanted else {}
-    written = None if args.out is None else _write_out(args, scored, provenance)
+    written = None if args.out is None else _write_out(args, scored, provenance, result)
     if args.json:
         documents = [_document(args, evaluator, s) for s in scored]
         if len(documents) == 1:
@@ -563,10 +575,14 @@ def run(args: argparse.Namespace) -> int:
                 "frames": [entry for s in scored for entry in _entries(s)],
                 "per_frame": documents,
             }
+        if result is not None:
+            document["temporal"] = result
         document["provenance"] = provenance
         print_json(document)
         return 0
     print("\n\n".join(_text(evaluator, s) for s in scored))
+    if temporal is not None:
+        print("\n" + temporal.text())
     if written is not None:
         print(f"\n{written}")
     return 0

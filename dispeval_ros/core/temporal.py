@@ -48,6 +48,12 @@ def pair_bad_threshold(name: str) -> float | None:
     return bad_threshold(name[len(_PREFIX) :]) if name.startswith(_PREFIX) else None
 
 
+def pair_unit(name: str) -> str:
+    """The unit of pair measure ``name`` from the registry (``tepe_bad_X`` for any X)."""
+    key = "tepe_bad_X" if pair_bad_threshold(name) is not None else name
+    return registry.PAIR_BY_NAME[key].unit
+
+
 def _expanded(name: str) -> tuple[str, ...]:
     if name == "tepe_bad_X":
         return tuple(f"tepe_bad_{t:g}" for t in DEFAULT_BAD_THRESHOLDS)
