@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli.common import given
-from dispeval_ros.cli.output import print_json
-from dispeval_ros.cli.summary import models_text
+from dispeval_ros.cli.output import print_json, wrapped
+from dispeval_ros.cli.summary import fitted_tables, models_text
 from dispeval_ros.core.protocols import PROTOCOLS, Protocol, get_protocol
 from dispeval_ros.errors import ConfigurationError
 
@@ -23,7 +23,9 @@ def _in_tree_results() -> str:
     for protocol in PROTOCOLS.values():
         for path in protocol.results.scene:
             paths.setdefault(path.format(method="NAME"), []).append(protocol.name)
-    return "; ".join(f"{path} in each {'/'.join(names)} scene folder" for path, names in paths.items())
+    return "; ".join(
+        f"{path} in each {'/'.join(names)} scene folder" for path, names in paths.items()
+    )
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -167,12 +169,14 @@ def report_text(run_result: BenchmarkRun, per_frame: bool = True) -> str:
     provenance = run_result.provenance
     files = run_result.files
     blocks = [
-        f"{protocol.title} — protocol '{protocol.name}' as {protocol.tool}\n"
-        f"dataset: {run_result.dataset} ({len(run_result.frames)} frames)\n"
-        f"float32 as the official tool: {protocol.float32}\n"
-        f"dispeval_ros {provenance.get('version')}, configuration sha256 "
-        f"{str(provenance.get('configuration_sha256'))[:16]}…, {len(files)} input files hashed "
-        "(sha256 of each in --json)"
+        wrapped(
+            f"{protocol.title} — protocol '{protocol.name}' as {protocol.tool}\n"
+            f"dataset: {run_result.dataset} ({len(run_result.frames)} frames)\n"
+            f"float32 as the official tool: {protocol.float32}\n"
+            f"dispeval_ros {provenance.get('version')}, configuration sha256 "
+            f"{str(provenance.get('configuration_sha256'))[:16]}…, {len(files)} input files "
+            "hashed (sha256 of each in --json)"
+        )
     ]
     notes = [f"note: {note}" for note in run_result.notes()]
     if run_result.moved:
@@ -201,7 +205,8 @@ def report_text(run_result: BenchmarkRun, per_frame: bool = True) -> str:
                 if region in f.values
             ]
             blocks.append(
-                f"method {method}: per frame\n" + _text_table(["frame region", *columns], rows)
+                f"method {method}: per frame\n"
+                + fitted_tables(["frame region", *columns], rows, keep=1, render=_text_table)
             )
     for region in protocol.regions:
         rows = [
@@ -211,8 +216,9 @@ def report_text(run_result: BenchmarkRun, per_frame: bool = True) -> str:
         ]
         if rows:
             blocks.append(
-                f"summary, region {region} ({protocol.summary})\n"
-                + _text_table(["method", *columns], rows)
+                wrapped(f"summary, region {region} ({protocol.summary})")
+                + "\n"
+                + fitted_tables(["method", *columns], rows, keep=1, render=_text_table)
             )
     if run_result.models is not None:
         blocks.append(models_text(run_result.models, run_result.objectives))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from dispeval_ros.cli.output import plural, table, text_width, wrapped
@@ -21,9 +21,13 @@ def measure_header(name: str, relative: bool = False) -> str:
 
 
 def fitted_tables(
-    header: Sequence[str], rows: Sequence[Sequence[object]], keep: int, width: int | None = None
+    header: Sequence[str],
+    rows: Sequence[Sequence[object]],
+    keep: int,
+    width: int | None = None,
+    render: Callable[[list[Any], list[list[Any]]], str] = table,
 ) -> str:
-    """``table``, split by columns into several tables no wider than :func:`text_width`.
+    """``render`` (``table``), split by columns into tables no wider than :func:`text_width`.
 
     The first ``keep`` columns (method, n) are repeated in every part.
     """
@@ -34,12 +38,12 @@ def fitted_tables(
         end = start + 1
         while end < len(header):
             columns = [*range(keep), *range(start, end + 1)]
-            text = table([header[i] for i in columns], [[r[i] for i in columns] for r in rows])
+            text = render([header[i] for i in columns], [[r[i] for i in columns] for r in rows])
             if max(len(line) for line in text.splitlines()) > limit:
                 break
             end += 1
         columns = [*range(keep), *range(start, min(end, len(header)))]
-        parts.append(table([header[i] for i in columns], [[r[i] for i in columns] for r in rows]))
+        parts.append(render([header[i] for i in columns], [[r[i] for i in columns] for r in rows]))
         start = end
     return "\n\n".join(parts)
 

@@ -127,6 +127,15 @@ def test_kitti_boundary_is_empty_said_and_no_objective(shared_data: Path, capsys
     assert not _too_wide(text.split("\n", 1)[1])  # the 'ground truth:' path line aside
 
 
+def test_protocol_reports_fit_100_columns(shared_data: Path, capsys: Any) -> None:
+    """The benchmark tables (MiddEval3 has 12 columns) are split, the header lines wrapped."""
+    scene = shared_data / "middeval3-training-Q" / "Teddy"
+    text = _run(capsys, "eval", "--protocol", "middeval3", "--scene", str(scene), "--est",
+                f"gt={scene / 'disp0GT.pfm'}")  # fmt: skip
+    assert "summary, region" in text
+    assert not _too_wide(text)
+
+
 def test_stored_results_leave_the_empty_criterion_out(
     shared_data: Path, tmp_path: Path, capsys: Any
 ) -> None:
