@@ -27,7 +27,7 @@ from dispeval_ros.core.objectives import (
     timing_objectives,
 )
 from dispeval_ros.core.records import FrameTiming, MatchCounts
-from dispeval_ros.core.timing import Timing, timing_of
+from dispeval_ros.core.timing import Timing, benchmark_keys, timing_of
 from dispeval_ros.errors import ConfigurationError
 
 GRANULARITIES = ("sequence", "frame")
@@ -58,6 +58,19 @@ class RunSummary:
     overall: ModelResult | None
     overall_matrix: np.ndarray | None = field(default=None, repr=False)
     """Methods × ``overall_objectives`` (every sequence's objectives side by side)."""
+
+    def benchmark_document(self) -> dict[str, Any]:
+        """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
+
+        Sections are named ``sequence/method`` (theirs are named by test), each holding the
+        ``BasicPerformanceMetrics.*`` keys of :func:`~dispeval_ros.core.timing.benchmark_keys`;
+        empty where no latency was recorded.
+        """
+        return {
+            f"{s.sequence}/{method}": benchmark_keys(timing)
+            for s in self.sequences
+            for method, timing in (s.timing or {}).items()
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (NaN left for the JSON writer to turn into null)."""

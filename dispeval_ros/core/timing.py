@@ -94,7 +94,7 @@ class Timing:
     latency_min: float
     first_latency: float
     last_latency: float
-    duration: float
+    span: float
     """Last minus first arrival (ms): ros2_benchmark's RECEIVED_DURATION."""
     fps: float
     fps_min: float
@@ -160,7 +160,7 @@ def timing_of(
         latency_min=float(delays.min()),
         first_latency=float(delays[0]),
         last_latency=float(delays[-1]),
-        duration=span / _MS,
+        span=span / _MS,
         fps=fps,
         fps_min=slowest,
         windows=windows,
@@ -201,8 +201,8 @@ def benchmark_keys(timing: Timing) -> dict[str, float | int]:
     """
     received = timing.frames
     values: dict[str, float | int] = {
-        "RECEIVED_DURATION": timing.duration,
-        "MEAN_FRAME_RATE": received / (timing.duration / 1e3) if timing.duration > 0 else math.nan,
+        "RECEIVED_DURATION": timing.span,
+        "MEAN_FRAME_RATE": received / (timing.span / 1e3) if timing.span > 0 else math.nan,
         "NUM_MISSED_FRAMES": timing.missed,
         "NUM_FRAMES_SENT": received + timing.missed,
         "FIRST_INPUT_LATENCY": timing.first_latency,

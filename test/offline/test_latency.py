@@ -19,9 +19,11 @@ import pytest
 from bag_support import METHODS, bag_args
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.cli.output import WIDTH
+from dispeval_ros.cli.summary import latency_text, run_summary_text
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.io.store import TIMING_COLUMNS, TIMING_TABLE, ResultsStore
+from dispeval_ros.io.store import TIMING_COLUMNS, TIMING_JSON, TIMING_TABLE, ResultsStore
 from dispeval_ros.offline.make_bag import (
     disparity_topic,
     estimates_from,
@@ -147,6 +149,8 @@ def test_the_summaries_equal_an_independent_computation(
     document = json.loads((out / "summary.json").read_text())
     (sequence,) = document["sequences"]
     latency = sequence["latency"]
+    exported = json.loads((out / TIMING_JSON).read_text())
+    assert len(exported) == len(METHODS)
     bm_misses = any(sequence["counts"][m]["dropped"] for m in METHODS)
     assert bm_misses, "the varied bag leaves frames out for one method"
     for method, pairs in logged(bag).items():
@@ -155,6 +159,18 @@ def test_the_summaries_equal_an_independent_computation(
         for name, value in expected.items():
             assert stored[name] == pytest.approx(value, rel=1e-12, abs=1e-12), (method, name)
         assert stored["missed"] == sequence["counts"][method]["dropped"]
+        arrivals = sorted(arrival for _, arrival in pairs)
+        benchmark = exported[f"{sequence['sequence']}/{method}"]
+        their_rate = len(pairs) / ((arrivals[-1] - arrivals[0]) / 1e9)  # n frames, n − 1 gaps
+        assert benchmark["BasicPerformanceMetrics.MEAN_FRAME_RATE"] == pytest.approx(their_rate)
+        assert benchmark["BasicPerformanceMetrics.NUM_FRAMES_SENT"] == FRAMES
+        assert benchmark["BasicPerformanceMetrics.NUM_MISSED_FRAMES"] == expected["missed"]
+        assert benchmark["BasicPerformanceMetrics.MAX_JITTER"] == pytest.approx(
+            expected["jitter_max"]
+        )
+        assert benchmark["BasicPerformanceMetrics.MEAN_LATENCY"] == pytest.approx(
+            expected["latency_mean"]
+        )
     assert len({latency[m]["latency_p95"] for m in METHODS}) == len(METHODS)
     assert any(latency[m]["jitter_max"] > 0 for m in METHODS)
 
@@ -256,3 +272,19 @@ def test_an_older_database_reads_as_no_latency_recorded(
     with ResultsStore.open(old) as store:
         assert not store.records_timing()
         assert len(store.stamps(store.sequences()[0])) == FRAMES  # the rest written again
+
+
+def test_the_latency_table_fits_the_width_and_shows_every_method(
+    varied: tuple[Path, Path, dict[str, int]],
+) -> None:
+    _, out, _ = varied
+    with ResultsStore.open(out) as store:
+        summary = summarize(store)
+        timing = summary.sequences[0].timing
+    assert timing is not None
+    text = latency_text(timing)
+    assert max(len(line) for line in text.splitlines()) <= WIDTH
+    for method, row in timing.items():
+        line = next(line for line in text.splitlines() if line.split()[:1] == [method])
+        assert line.split()[1:3] == [str(row.frames), str(row.missed)]
+    assert "latency: arrival" in run_summary_text(summary)

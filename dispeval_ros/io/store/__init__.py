@@ -15,7 +15,13 @@ run per folder), ``rows`` (a unit's rows, made without a database), ``reader``, 
 from __future__ import annotations
 
 from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
-from dispeval_ros.io.store.export import FRAMES_CSV, SUMMARY_JSON, TIMING_COLUMNS, CsvExport
+from dispeval_ros.io.store.export import (
+    FRAMES_CSV,
+    SUMMARY_JSON,
+    TIMING_COLUMNS,
+    TIMING_JSON,
+    CsvExport,
+)
 from dispeval_ros.io.store.reader import ResultsReader
 from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
@@ -36,6 +42,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "SUMMARY_JSON",
     "TIMING_COLUMNS",
+    "TIMING_JSON",
     "TIMING_TABLE",
     "FrameScores",
     "FrameTiming",

@@ -14,6 +14,8 @@ FRAMES_CSV = "frames.csv"
 """Every frame row of a results folder as CSV (:meth:`CsvExport.export_csv`)."""
 SUMMARY_JSON = "summary.json"
 """The summary and provenance of a results folder (written by the run that made it)."""
+TIMING_JSON = "timing.json"
+"""The latency and rate of a results folder in ros2_benchmark's result-JSON keys."""
 TIMING_COLUMNS = ("estimate_stamp", "arrival", "delay_ms")
 """Last in every frames.csv row: the estimate's header stamp and arrival (ns, as ``stamp``)
 and its delay, arrival − estimate stamp in ms; empty where no latency was recorded."""
