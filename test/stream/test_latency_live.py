@@ -10,9 +10,22 @@ from sample_feed import sample_bag, sample_config
 
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import GT_TOPIC
 from dispeval_ros.stream.core import CoreConfig, FrameResult
 from dispeval_ros.stream.runner import LiveEvaluator
+from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
+from dispeval_ros.stream.vectors import (
+    DELAY_ALARM,
+    DELAY_KEY,
+    ERROR,
+    OK,
+    WARN,
+    AlarmThresholds,
+    arrival_of,
+    scores_from_status,
+    scores_status,
+)
 
 
 @pytest.fixture(scope="module")
@@ -89,3 +102,73 @@ def test_without_receipt_times_the_clock_shifted_by_the_epoch_is_the_receipt(
         for method, delay in result.delays().items():
             assert delay == expected[result.sent[method], config.methods[method]]
             assert abs(delay - late_by(config, config.methods[method], 0)) < 10_000_000
+
+
+def test_the_scores_statuses_carry_the_latency_to_the_summarizer_database(
+    feed: tuple[CoreConfig, list[list[tuple[str, Any]]]], tmp_path: Path
+) -> None:
+    """Evaluator → ``/dispeval/scores`` statuses → summarizer: the delays stored are the
+    receipt times minus the stamps, as ``dispeval bag`` stores log time minus stamp."""
+    config, frames = feed
+    results: list[FrameResult] = []
+    live = LiveEvaluator(config, results.append, queue_size=100)
+    received: dict[tuple[int, str], int] = {}
+    method_of = {topic: name for name, topic in config.methods.items()}
+    for index, frame in enumerate(frames):
+        for topic, msg in frame:
+            when = stamp_ns(msg.header) + late_by(config, topic, index)
+            if topic in method_of:
+                received[stamp_ns(msg.header), method_of[topic]] = when
+            live.push(topic, msg, received=when)
+    live.stop(flush=True)
+    core = SummarizerCore(SummarizerConfig(tmp_path / "out", every_n=2), {"run": "live"})
+    for result in sorted(results, key=lambda r: r.stamp):
+        scores, arrivals = {}, {}
+        for method, method_scores in result.scores.items():
+            status = scores_status(
+                method,
+                config.methods[method],
+                method_scores,
+                estimate_stamp=result.estimate_stamps[method],
+                arrival=result.arrivals[method],
+            )
+            table = dict(status.values)
+            delay = result.arrivals[method] - result.estimate_stamps[method]
+            assert float(table[DELAY_KEY]) == delay / 1e6
+            scores[method] = scores_from_status(status.values)
+            found = arrival_of(status.values)
+            assert found is not None
+            arrivals[method] = found
+        core.add(result.stamp, scores, arrivals)
+    summary = core.finish()
+    assert summary is not None
+    with ResultsStore.open(tmp_path / "out") as store:
+        timing = store.timing(store.sequences()[0])
+    assert timing is not None
+    stored = {(e.stamp, e.method): e.delay for entries in timing.values() for e in entries}
+    assert stored == {key: when - key[0] for key, when in received.items()}
+    assert summary.sequences[0].timing is not None
+
+
+def test_the_latency_alarm_sets_the_status_level(
+    feed: tuple[CoreConfig, list[list[tuple[str, Any]]]],
+) -> None:
+    config, frames = feed
+    results: list[FrameResult] = []
+    live = LiveEvaluator(config, results.append, queue_size=100)
+    for index, frame in enumerate(frames[:1]):
+        for topic, msg in frame:
+            live.push(topic, msg, received=stamp_ns(msg.header) + late_by(config, topic, index))
+    live.stop(flush=True)
+    (result,) = results
+    alarms = AlarmThresholds.parse([f"{DELAY_ALARM}=10"], [f"{DELAY_ALARM}=20"])
+    levels = {}
+    for method, scores in result.scores.items():
+        status = scores_status(
+            method, "", scores, alarms, result.estimate_stamps[method], result.arrivals[method]
+        )
+        levels[result.delays()[method] / 1e6] = status.level
+    assert levels == {
+        delay: ERROR if delay > 20 else WARN if delay > 10 else OK for delay in levels
+    }
+    assert len(set(levels.values())) > 1
