@@ -54,10 +54,11 @@ def late_by(config: CoreConfig, topic: str, index: int) -> int:
     return 7_000_000 + 11_000_000 * methods.index(topic) + 3_000_000 * index
 
 
-def test_delays_are_the_receipt_times_given_minus_the_stamps(
-    feed: tuple[CoreConfig, list[list[tuple[str, Any]]]],
-) -> None:
-    config, frames = feed
+def received_live(
+    config: CoreConfig, frames: list[list[tuple[str, Any]]]
+) -> tuple[list[FrameResult], dict[tuple[int, str], int]]:
+    """The results of pushing ``frames`` with receipt times (:func:`late_by`), and those times
+    by (estimate stamp, method)."""
     results: list[FrameResult] = []
     live = LiveEvaluator(config, results.append, queue_size=100)
     received: dict[tuple[int, str], int] = {}
@@ -69,6 +70,14 @@ def test_delays_are_the_receipt_times_given_minus_the_stamps(
                 received[stamp_ns(msg.header), method_of[topic]] = when
             live.push(topic, msg, received=when)
     live.stop(flush=True)
+    return results, received
+
+
+def test_delays_are_the_receipt_times_given_minus_the_stamps(
+    feed: tuple[CoreConfig, list[list[tuple[str, Any]]]],
+) -> None:
+    config, frames = feed
+    results, received = received_live(config, frames)
     assert {r.stamp for r in results} == {stamp for stamp, _ in received}
     seen = {}
     for result in results:
@@ -110,17 +119,7 @@ def test_the_scores_statuses_carry_the_latency_to_the_summarizer_database(
     """Evaluator → ``/dispeval/scores`` statuses → summarizer: the delays stored are the
     receipt times minus the stamps, as ``dispeval bag`` stores log time minus stamp."""
     config, frames = feed
-    results: list[FrameResult] = []
-    live = LiveEvaluator(config, results.append, queue_size=100)
-    received: dict[tuple[int, str], int] = {}
-    method_of = {topic: name for name, topic in config.methods.items()}
-    for index, frame in enumerate(frames):
-        for topic, msg in frame:
-            when = stamp_ns(msg.header) + late_by(config, topic, index)
-            if topic in method_of:
-                received[stamp_ns(msg.header), method_of[topic]] = when
-            live.push(topic, msg, received=when)
-    live.stop(flush=True)
+    results, received = received_live(config, frames)
     core = SummarizerCore(SummarizerConfig(tmp_path / "out", every_n=2), {"run": "live"})
     for result in sorted(results, key=lambda r: r.stamp):
         scores, arrivals = {}, {}
@@ -154,12 +153,7 @@ def test_the_latency_alarm_sets_the_status_level(
     feed: tuple[CoreConfig, list[list[tuple[str, Any]]]],
 ) -> None:
     config, frames = feed
-    results: list[FrameResult] = []
-    live = LiveEvaluator(config, results.append, queue_size=100)
-    for index, frame in enumerate(frames[:1]):
-        for topic, msg in frame:
-            live.push(topic, msg, received=stamp_ns(msg.header) + late_by(config, topic, index))
-    live.stop(flush=True)
+    results, _ = received_live(config, frames[:1])
     (result,) = results
     alarms = AlarmThresholds.parse([f"{DELAY_ALARM}=10"], [f"{DELAY_ALARM}=20"])
     levels = {}
