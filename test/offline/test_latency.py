@@ -288,3 +288,23 @@ def test_the_latency_table_fits_the_width_and_shows_every_method(
         line = next(line for line in text.splitlines() if line.split()[:1] == [method])
         assert line.split()[1:3] == [str(row.frames), str(row.missed)]
     assert "latency: arrival" in run_summary_text(summary)
+
+
+def test_merge_keeps_the_latency_only_when_every_input_recorded_it(
+    made: tuple[Path, Path, dict[str, int]], tmp_path: Path
+) -> None:
+    _, out, _ = made
+    bag, _ = make(tmp_path, "north")
+    run_bag(bag, tmp_path / "north_res")
+    assert main(["merge", str(tmp_path / "both"), str(out), str(tmp_path / "north_res")]) == 0
+    with ResultsStore.open(tmp_path / "both") as store:
+        merged = {s: store.timing(s) for s in store.sequences()}
+    with ResultsStore.open(out) as store:
+        assert merged["drive"] == store.timing("drive")
+    exported = json.loads((tmp_path / "both" / TIMING_JSON).read_text())
+    assert sorted(exported) == sorted(f"{s}/{m}" for s in ("drive", "north") for m in METHODS)
+    drop_timing(tmp_path / "north_res")
+    assert main(["merge", str(tmp_path / "part"), str(out), str(tmp_path / "north_res")]) == 0
+    with ResultsStore.open(tmp_path / "part") as store:
+        assert not store.records_timing()
+    assert not (tmp_path / "part" / TIMING_JSON).exists()
