@@ -118,9 +118,9 @@ def timing_objectives(
             if not np.isfinite(value):
                 frames = method_timing.frames if method_timing else 0
                 raise ConfigurationError(
-                    f"objective measure {name} is undefined for {method} over sequence "
-                    f"{sequence} ({frames} estimate(s) arrived; "
-                    f"{TIMING_MEASURES[name].text} needs more)"
+                    f"objective measure {name} ({TIMING_MEASURES[name].text}) is undefined for "
+                    f"{method} over sequence {sequence}: {frames} estimate(s) arrived, too few "
+                    "or too close together; choose another timing measure"
                 )
             block[row, column] = -value if TIMING_MEASURES[name].higher_is_better else value
     return [f"{name} @{sequence}" for name in measures], block

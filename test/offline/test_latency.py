@@ -21,6 +21,9 @@ from bag_support import METHODS, bag_args
 from dispeval_ros.cli.main import main
 from dispeval_ros.cli.output import WIDTH
 from dispeval_ros.cli.summary import latency_text, run_summary_text
+from dispeval_ros.core.objectives import timing_objectives
+from dispeval_ros.core.timing import timing_of
+from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import TIMING_COLUMNS, TIMING_JSON, TIMING_TABLE, ResultsStore
@@ -308,3 +311,15 @@ def test_merge_keeps_the_latency_only_when_every_input_recorded_it(
     with ResultsStore.open(tmp_path / "part") as store:
         assert not store.records_timing()
     assert not (tmp_path / "part" / TIMING_JSON).exists()
+
+
+def test_an_undefined_timing_objective_is_one_line_naming_it() -> None:
+    """Two arrivals have no jitter (it needs three): refused, not ranked on NaN."""
+    timing = {"a": timing_of([0, 100], [20, 130], 0), "b": timing_of([0, 100], [30, 140], 0)}
+    names, block = timing_objectives(timing, "s", ["a", "b"], ["latency_max", "fps"])
+    assert names == ["latency_max @s", "fps @s"]
+    np.testing.assert_allclose(block, [[30e-6, -1e9 / 110], [40e-6, -1e9 / 110]], rtol=1e-12)
+    with pytest.raises(ConfigurationError, match=r"jitter_max .* undefined for a over sequence s"):
+        timing_objectives(timing, "s", ["a", "b"], ["jitter_max"])
+    with pytest.raises(ConfigurationError, match="no latency recorded for sequence s"):
+        timing_objectives(None, "s", ["a", "b"], ["latency_p95"])
