@@ -3,6 +3,11 @@
 Sums such as SZE and BMPRE grow with the number of points, so methods are compared on the
 frames that *every* method delivered (the common stamps) only: a method that dropped frames
 is not rewarded with smaller sums. Sequence scores are sums of per-frame sums.
+
+Latency and rate (:mod:`~dispeval_ros.core.timing`) are per method over all the frames it
+delivered in the sequence (a delay is no sum: delivering fewer frames does not lower it, and
+the frames it missed are a measure of their own), so the objective ranked is the number the
+latency table shows.
 """
 
 from __future__ import annotations
@@ -15,8 +20,14 @@ import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.measures import applies
-from dispeval_ros.core.objectives import default_objective_measures, has_points
-from dispeval_ros.core.records import MatchCounts
+from dispeval_ros.core.objectives import (
+    default_objective_measures,
+    has_points,
+    split_timing_measures,
+    timing_objectives,
+)
+from dispeval_ros.core.records import FrameTiming, MatchCounts
+from dispeval_ros.core.timing import Timing, benchmark_keys, timing_of
 from dispeval_ros.errors import ConfigurationError
 
 GRANULARITIES = ("sequence", "frame")
@@ -32,6 +43,8 @@ class SequenceSummary:
     common_frames: int
     objectives: list[str]
     models: ModelResult | None
+    timing: dict[str, Timing] | None = None
+    """Per method, its latency and rate over the sequence; None: no latency recorded."""
 
 
 @dataclass
@@ -46,6 +59,19 @@ class RunSummary:
     overall_matrix: np.ndarray | None = field(default=None, repr=False)
     """Methods × ``overall_objectives`` (every sequence's objectives side by side)."""
 
+    def benchmark_document(self) -> dict[str, Any]:
+        """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
+
+        Sections are named ``sequence/method`` (theirs are named by test), each holding the
+        ``BasicPerformanceMetrics.*`` keys of :func:`~dispeval_ros.core.timing.benchmark_keys`;
+        empty where no latency was recorded.
+        """
+        return {
+            f"{s.sequence}/{method}": benchmark_keys(timing)
+            for s in self.sequences
+            for method, timing in (s.timing or {}).items()
+        }
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (NaN left for the JSON writer to turn into null)."""
         return {
@@ -59,6 +85,9 @@ class RunSummary:
                     "scores": {m: sc.to_dict() for m, sc in s.scores.items()},
                     "objectives": s.objectives,
                     "models": s.models.to_dict() if s.models else None,
+                    "latency": None
+                    if s.timing is None
+                    else {m: t.to_dict() for m, t in s.timing.items()},
                 }
                 for s in self.sequences
             ],
@@ -110,6 +139,28 @@ class ScoreSource(Protocol):
     def match_counts(self, sequence: str) -> dict[str, MatchCounts]: ...  # noqa: D102
 
 
+def sequence_timing(store: object, sequence: str) -> dict[str, Timing] | None:
+    """Per method, :func:`~dispeval_ros.core.timing.timing_of` its arrivals in ``sequence``.
+
+    A method counted in the sequence but without any arrival has 0 frames (and its missed
+    ones). None where no latency is recorded (an older database, the live running totals).
+    """
+    reader = getattr(store, "timing", None)
+    found: dict[str, list[FrameTiming]] | None = reader(sequence) if reader else None
+    if not found:
+        return None if found is None else {}
+    counts = store.match_counts(sequence)  # type: ignore[attr-defined]
+    methods = [*counts, *(m for m in found if m not in counts)]
+    result = {}
+    for method in methods:
+        entries = found.get(method, [])
+        missed = counts[method].dropped if method in counts else 0
+        result[method] = timing_of(
+            [e.estimate_stamp for e in entries], [e.arrival for e in entries], missed
+        )
+    return result
+
+
 def _objectives(
     store: ScoreSource,
     sequence: str,
@@ -149,7 +200,8 @@ def summarize(
         )
     computed = store.measures()
     measures = measures or default_objective_measures(computed)
-    unknown = [m for m in measures if computed and m not in computed]
+    scored, timed = split_timing_measures(measures)
+    unknown = [m for m in scored if computed and m not in computed]
     if unknown:
         raise ConfigurationError(
             f"objective measure(s) {', '.join(unknown)} were not computed; "
@@ -160,11 +212,17 @@ def summarize(
     all_names: list[str] = []
     all_blocks: list[np.ndarray] = []
     for sequence in store.sequences():
-        names, block, totals, common = _objectives(store, sequence, methods, measures, granularity)
+        names, block, totals, common = _objectives(store, sequence, methods, scored, granularity)
+        timing = sequence_timing(store, sequence)
+        if common and timed:
+            timing_names, timing_block = timing_objectives(timing, sequence, methods, timed)
+            names, block = [*names, *timing_names], np.hstack([block, timing_block])
         present = [m for m in methods if m in totals]
         models = evaluate_models(present, block) if len(present) > 1 and names else None
         summaries.append(
-            SequenceSummary(sequence, store.match_counts(sequence), totals, common, names, models)
+            SequenceSummary(
+                sequence, store.match_counts(sequence), totals, common, names, models, timing
+            )
         )
         if names:
             all_names.extend(names)

@@ -25,6 +25,7 @@ from dispeval_ros.core.objectives import (
     default_objective_measures,
     objective_matrix,
 )
+from dispeval_ros.core.timing import TIMING_MEASURES
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.summary import GRANULARITIES
 
@@ -203,7 +204,9 @@ def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGr
         default=None,
         metavar="M",
         help="measures that form the objectives, each on the criteria it is defined on "
-        f"(default: {DEFAULT_OBJECTIVES_TEXT}; add vpe to rank on it beside the GT measures)",
+        f"(default: {DEFAULT_OBJECTIVES_TEXT}; add vpe to rank on it beside the GT measures); "
+        f"timing measures of stored results ({', '.join(TIMING_MEASURES)}) add one objective "
+        "per sequence",
     )
 
 

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from dispeval_ros.cli import common
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.core.projection import CloudFilter
+from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.stream.config import FieldNames, core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
@@ -199,11 +200,15 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)
-    unknown = [m for m in args.objective_measures if m not in config.scored_measures]
+    unknown = [
+        m
+        for m in args.objective_measures
+        if m not in config.scored_measures and not is_timing_measure(m)
+    ]
     if unknown:  # found now, not after the whole recording was scored
         raise ConfigurationError(
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
-            f"({', '.join(config.scored_measures)})"
+            f"({', '.join(config.scored_measures)}) nor timing ({', '.join(TIMING_MEASURES)})"
         )
     return config
 

@@ -9,6 +9,7 @@ from dispeval_ros.cli.output import plural, table, text_width, wrapped
 from dispeval_ros.core import ModelResult
 from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
 from dispeval_ros.core.objectives import has_points
+from dispeval_ros.core.timing import TIMING_MEASURES, WINDOW_NS
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 GT_FREE_LABEL = "  (ground-truth-free: from the left and right images, no GT)"
@@ -175,6 +176,43 @@ SEQUENCE_MEASURES = (
 The depth-domain measures (LiDAR runs) where they were computed."""
 
 
+TIMING_SHOWN = (
+    "latency_median", "latency_p95", "latency_max", "fps", "fps_min", "jitter_mean", "jitter_max"
+)  # fmt: skip
+"""The timing measures of the latency table (``missed`` has its own column after frames)."""
+NO_LATENCY = (
+    "latency: not recorded (results written before dispeval recorded arrival times; "
+    "a run resumed onto them records none either)"
+)
+
+
+def latency_text(timing: Mapping[str, Any] | None) -> str:
+    """A sequence's latency table (one row per method), or why there is none; '' if none.
+
+    ``timing``: method → :class:`~dispeval_ros.core.timing.Timing`; None: not recorded;
+    empty: nothing arrived with a time (scored from files).
+    """
+    if timing is None:
+        return wrapped(NO_LATENCY)
+    if not timing:
+        return ""
+    header = [
+        "method",
+        "frames",
+        "missed",
+        *(f"{n} [{TIMING_MEASURES[n].unit}]" for n in TIMING_SHOWN),
+    ]
+    rows = [
+        [method, t.frames, t.missed, *(t.value(n) for n in TIMING_SHOWN)]
+        for method, t in timing.items()
+    ]
+    title = (
+        "\nlatency: arrival − header stamp (log time in a bag, receipt time live) over every "
+        f"frame each method delivered; fps_min: the slowest complete {WINDOW_NS / 1e9:g} s window"
+    )
+    return wrapped(title) + "\n" + fitted_tables(header, rows, keep=1)
+
+
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
@@ -192,6 +230,9 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
                 ],
             )
         )
+        latency = latency_text(sequence.timing)
+        if latency:
+            parts.append(latency)
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

@@ -8,6 +8,7 @@ import numpy as np
 
 from dispeval_ros.core import registry
 from dispeval_ros.core.measures import GT_FREE_MEASURES, HIGHER_IS_BETTER
+from dispeval_ros.core.timing import TIMING_MEASURES, Timing, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 
 ScoreTable = Mapping[str, Mapping[str, float]]
@@ -79,3 +80,47 @@ def objective_matrix(
                 matrix[row, column] = -value if measure in HIGHER_IS_BETTER else value
                 column += 1
     return methods, names, matrix
+
+
+def split_timing_measures(measures: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The per-criterion measures and the timing measures (``latency_p95``…) of ``measures``."""
+    return (
+        [m for m in measures if not is_timing_measure(m)],
+        [m for m in measures if is_timing_measure(m)],
+    )
+
+
+def timing_objectives(
+    timing: Mapping[str, Timing] | None,
+    sequence: str,
+    methods: Sequence[str],
+    measures: Sequence[str],
+) -> tuple[list[str], np.ndarray]:
+    """The timing objectives of a sequence: one column per measure (``name @sequence``).
+
+    A timing measure is one value per method and sequence, not per criterion (see
+    :mod:`~dispeval_ros.core.timing`), so it adds one column per sequence beside the
+    criteria's, whatever the granularity of those; rates (higher is better) are negated.
+    Without recorded latency, or with a value undefined (too few arrivals), one line.
+    """
+    if not measures:
+        return [], np.empty((len(methods), 0))
+    if not timing:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(measures)}: no latency recorded for sequence "
+            f"{sequence} (results written before arrival times were, or scored from files)"
+        )
+    block = np.empty((len(methods), len(measures)), dtype=np.float64)
+    for row, method in enumerate(methods):
+        for column, name in enumerate(measures):
+            method_timing = timing.get(method)
+            value = method_timing.value(name) if method_timing else float("nan")
+            if not np.isfinite(value):
+                frames = method_timing.frames if method_timing else 0
+                raise ConfigurationError(
+                    f"objective measure {name} ({TIMING_MEASURES[name].text}) is undefined for "
+                    f"{method} over sequence {sequence}: {frames} estimate(s) arrived, too few "
+                    "or too close together; choose another timing measure"
+                )
+            block[row, column] = -value if TIMING_MEASURES[name].higher_is_better else value
+    return [f"{name} @{sequence}" for name in measures], block

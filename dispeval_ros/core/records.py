@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from dispeval_ros.core.measures import Scores
 
-__all__ = ["FrameScores", "MatchCounts", "Problem"]
+__all__ = ["FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -24,6 +24,27 @@ class FrameScores:
     stamp: int
     method: str
     scores: Scores
+
+
+@dataclass(frozen=True)
+class FrameTiming:
+    """When one method's estimate for one ground-truth frame arrived (nanoseconds).
+
+    ``stamp``: the ground-truth frame's (as in :class:`FrameScores`); ``estimate_stamp``: the
+    estimate's header stamp; ``arrival``: a bag's log time, the receipt time live. Kept for
+    every estimate joined with a frame, scored or not (it was delivered either way).
+    """
+
+    sequence: str
+    stamp: int
+    method: str
+    estimate_stamp: int
+    arrival: int
+
+    @property
+    def delay(self) -> int:
+        """Arrival minus the estimate's header stamp (ns): how late the map came."""
+        return self.arrival - self.estimate_stamp
 
 
 @dataclass(frozen=True)

@@ -220,6 +220,7 @@ class DdsEvaluator:
                 scores,
                 self.alarms,
                 result.estimate_stamps.get(method),
+                result.arrivals.get(method),
             )
             for method, scores in result.scores.items()
         ]

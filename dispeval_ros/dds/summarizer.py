@@ -41,7 +41,7 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 SUMMARY_SHARE = 0.1
@@ -102,6 +102,7 @@ class DdsSummarizer:
             return
         stamp, records = records_of(received.msg)
         scores: dict[str, Scores] = {}
+        arrivals: dict[str, tuple[int, int]] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -115,9 +116,12 @@ class DdsSummarizer:
                     problems.append(problem)
                     continue
                 scores[record.name] = scores_from_status(record.values)
+                arrival = arrival_of(record.values)
+                if arrival is not None:
+                    arrivals[record.name] = arrival
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries)
+        self.add(stamp, scores, problems, deliveries, arrivals)
 
     def add(
         self,
@@ -125,8 +129,12 @@ class DdsSummarizer:
         scores: Mapping[str, Scores],
         problems: list[tuple[str | None, str]] | None = None,
         deliveries: list[Delivery] | None = None,
+        arrivals: Mapping[str, tuple[int, int]] | None = None,
     ) -> None:
-        """One frame (as it came off the wire): store, summarise every unit, publish groups."""
+        """One frame (as it came off the wire): store, summarise every unit, publish groups.
+
+        ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency).
+        """
         summary = None
         with self._lock:
             self.received += 1
@@ -144,7 +152,7 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores)
+                summary = self.core.add(stamp, scores, arrivals)
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)

@@ -334,6 +334,15 @@ def estimates_from(name: str, folder: Path, reserved: Iterable[str] = ()) -> Est
     return Estimates(name, folder, files)
 
 
+def method_latency_ns(order: int) -> int:
+    """How long after its images' stamp a method's DisparityImage is logged (ns).
+
+    20 ms plus 15 ms per method before it in the bag (its pipeline's processing time): the
+    delay ``dispeval bag`` measures for it.
+    """
+    return 20_000_000 + 15_000_000 * order
+
+
 def write_bag(
     path: Path,
     frames: Iterable[BagFrame],
@@ -344,11 +353,14 @@ def write_bag(
     compress: bool = False,
     progress: Callable[[int], None] | None = None,
     estimates: Sequence[Estimates] = (),
+    delay: Callable[[int, int], int | None] | None = None,
 ) -> dict[str, object]:
     """Write every frame (images, CameraInfo, GT, each method's disparity); returns a summary.
 
     ``estimates`` are published beside the methods, frame by frame (by
-    :attr:`BagFrame.number`, else the frame's position).
+    :attr:`BagFrame.number`, else the frame's position). ``delay(order, index)``: how long
+    after its stamp the ``order``-th source's map of frame ``index`` is logged (ns), None to
+    leave it out (a frame that source missed); default :func:`method_latency_ns` of order.
     """
     written = 0
     clouds = 0
@@ -433,6 +445,9 @@ def write_bag(
             for source in estimates:
                 outputs.append((source.name, *source.message_values(number, (height, width))))
             for order, (name, disparity, low, high) in enumerate(outputs):
+                late = method_latency_ns(order) if delay is None else delay(order, index)
+                if late is None:
+                    continue
                 message = disparity_to_msg(
                     typestore,
                     disparity,
@@ -444,8 +459,7 @@ def write_bag(
                     high,
                     doffs=camera.doffs if camera else 0.0,
                 )
-                latency = 20_000_000 + 15_000_000 * order  # a pipeline's processing time
-                bag.write(disparity_topic(name), stamp + latency, message)
+                bag.write(disparity_topic(name), stamp + late, message)
             written += 1
             if progress is not None:
                 progress(written)
@@ -457,6 +471,16 @@ def write_bag(
         "frames": written,
         "fps": fps,
         "methods": {name: disparity_topic(name) for name in _names(chosen, estimates)},
+        **(
+            {
+                "latency_ms": {
+                    name: method_latency_ns(order) / 1e6
+                    for order, name in enumerate(_names(chosen, estimates))
+                }
+            }
+            if delay is None
+            else {}
+        ),
         "estimates": {e.name: str(e.folder) for e in estimates},
         "gt": GT_TOPIC if has_gt else None,
         **({"gt_source": gt_source} if gt_source else {}),

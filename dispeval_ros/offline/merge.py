@@ -27,7 +27,7 @@ from pathlib import Path
 
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.errors import ConfigurationError, InputError
-from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, TIMING_JSON, ResultsStore
 from dispeval_ros.offline.records import RunFiles, write_run_files
 
 PER_RUN_KEYS = ("bags",)
@@ -94,6 +94,8 @@ def merge_results(
             )
             out.mkdir(parents=True, exist_ok=True)
             _check_target(out)
+            if (scratch / TIMING_JSON).exists():  # written where latency was recorded
+                os.replace(scratch / TIMING_JSON, out / TIMING_JSON)
             for name in (FRAMES_CSV, SUMMARY_JSON, RESULTS_FILE):  # the database last
                 os.replace(scratch / name, out / name)
         finally:

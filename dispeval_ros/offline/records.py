@@ -19,7 +19,7 @@ from dispeval_ros.core.records import FrameScores, MatchCounts
 from dispeval_ros.errors import ConfigurationError, ResultsConflictError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.provenance import digests_to_damage
-from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, ResultsStore
+from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, TIMING_JSON, ResultsStore
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
@@ -107,6 +107,8 @@ def write_run_files(
 ) -> RunFiles:
     """Write ``folder/frames.csv`` and ``folder/summary.json`` of ``store`` (the run's summary).
 
+    Where latency was recorded, also ``folder/timing.json`` (:meth:`RunSummary.benchmark_document`).
+
     ``measures`` and ``granularity`` are those of :func:`~dispeval_ros.summary.summarize`;
     ``summary.json`` is the summary with the run's ``provenance`` record.
     """
@@ -114,6 +116,9 @@ def write_run_files(
     summary = summarize(store, measures, granularity)
     document = {**summary.to_dict(), "provenance": dict(provenance)}
     write_json(folder / SUMMARY_JSON, document)
+    timing = summary.benchmark_document()
+    if timing:  # latency recorded: its ros2_benchmark-style export beside the summary
+        write_json(folder / TIMING_JSON, timing)
     return RunFiles(rows, summary, document)
 
 

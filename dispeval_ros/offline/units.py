@@ -29,7 +29,7 @@ from pathlib import Path
 from queue import Full, Queue
 from typing import Any, TypeVar
 
-from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
+from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
 from dispeval_ros.io.messages import stamp_ns
@@ -78,6 +78,8 @@ class UnitResult:
     frames: list[FrameScores] = field(default_factory=list)
     problems: list[Problem] = field(default_factory=list)
     counts: dict[str, MatchCounts] = field(default_factory=dict)
+    timing: list[FrameTiming] = field(default_factory=list)
+    """When each method's estimate of a kept frame was logged (scored or not)."""
     messages: int = 0
     kept: dict[int, int] = field(default_factory=dict)
     """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
@@ -104,7 +106,9 @@ class UnitRows:
     def of(cls, result: UnitResult) -> UnitRows:
         """The rows of an evaluated unit."""
         unit = result.unit
-        rows = prepare_unit(unit.sequence, unit.name, result.frames, result.problems, result.counts)
+        rows = prepare_unit(
+            unit.sequence, unit.name, result.frames, result.problems, result.counts, result.timing
+        )
         return cls(
             unit,
             rows,
@@ -426,6 +430,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult]]] = deque()
 
     def collect(frame_set: FrameSet[Any, Any], frame: FrameResult) -> None:
+        result.timing.extend(
+            FrameTiming(unit.sequence, frame.stamp, method, frame.sent[method], arrival)
+            for method, arrival in frame.arrivals.items()
+        )
         for method, scores in frame.scores.items():
             result.frames.append(FrameScores(unit.sequence, frame.stamp, method, scores))
             matched[method] += 1

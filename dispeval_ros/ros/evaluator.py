@@ -312,6 +312,7 @@ class EvaluatorNode(Node):
                 scores,
                 alarms,
                 result.estimate_stamps.get(method),
+                result.arrivals.get(method),
             )
             for method, scores in result.scores.items()
         ]

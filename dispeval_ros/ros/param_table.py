@@ -22,6 +22,7 @@ from dispeval_ros.stream.topics import (
     SCORES_TOPIC,
     method_topic,
 )
+from dispeval_ros.stream.vectors import DELAY_ALARM
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"
@@ -253,7 +254,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         STRING_ARRAY,
         (),
         f"WARN level in {SCORES_TOPIC} when CRITERION/MEASURE exceeds VALUE (density: falls "
-        "below it). Can be changed at run time",
+        f"below it; {DELAY_ALARM}: an estimate's delay in ms). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=20",
         read_only=False,
     ),
@@ -262,7 +263,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         STRING_ARRAY,
         (),
         f"ERROR level in {SCORES_TOPIC} when CRITERION/MEASURE exceeds VALUE (density: falls "
-        "below it). Can be changed at run time",
+        f"below it; {DELAY_ALARM}: an estimate's delay in ms). Can be changed at run time",
         "each CRITERION/MEASURE=VALUE, e.g. all/bmp=40",
         read_only=False,
     ),

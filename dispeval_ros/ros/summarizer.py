@@ -41,7 +41,7 @@ from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_o
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
@@ -110,6 +110,7 @@ class SummarizerNode(Node):
         self._received += 1
         stamp = stamp_ns(msg.header)
         frame: dict[str, Scores] = {}
+        arrivals: dict[str, tuple[int, int]] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -123,6 +124,9 @@ class SummarizerNode(Node):
                     problems.append((stamp, *problem))
                 else:
                     frame[record.name] = scores_from_status(record.values)
+                    arrival = arrival_of(record.values)
+                    if arrival is not None:
+                        arrivals[record.name] = arrival
             except DispevalError as error:
                 self.get_logger().warning(
                     f"ignoring status '{record.name}' on {SCORES_TOPIC}: {error}",
@@ -138,7 +142,7 @@ class SummarizerNode(Node):
             if not frame:
                 return
             try:
-                summary = self._core.add(stamp, frame)
+                summary = self._core.add(stamp, frame, arrivals)
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

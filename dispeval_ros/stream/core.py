@@ -88,6 +88,15 @@ class FrameResult:
     """With ``error_images``: per method, the absolute error (float32, NaN where not evaluated)."""
     partition: Partition | None = None
     """The criteria of this frame's ground truth (to render error images with criteria)."""
+    arrivals: dict[str, int] = field(default_factory=dict)
+    """Per method joined with this frame (scored or not): when its estimate arrived (ns, the
+    join's arrival clock: a bag's log time, the receipt time live)."""
+    sent: dict[str, int] = field(default_factory=dict)
+    """Per method in :attr:`arrivals`: its estimate's header stamp (ns)."""
+
+    def delays(self) -> dict[str, int]:
+        """Per method: arrival minus its estimate's header stamp (ns)."""
+        return {method: arrival - self.sent[method] for method, arrival in self.arrivals.items()}
 
 
 @dataclass
@@ -215,6 +224,10 @@ class EvaluationCore:
             for method, entry in frame_set.estimates.items()
             if method in self.config.methods
         }
+        for method, (stamp, _) in estimates.items():
+            if method in frame_set.arrivals:
+                result.arrivals[method] = frame_set.arrivals[method]
+                result.sent[method] = stamp
         if not estimates:  # only images or right views arrived for this frame
             return result
         pair = self._image_pair(frame_set, result)

@@ -56,13 +56,15 @@ class JoinCounts:
 class FrameSet(Generic[G, E]):
     """One ground-truth frame and the estimates paired with it (method → (stamp, payload)).
 
-    ``arrival``: when the ground-truth frame arrived (the clock of units and lateness).
+    ``arrival``: when the ground-truth frame arrived (the clock of units and lateness);
+    ``arrivals``: when each estimate arrived, on that clock (its delay is that minus its stamp).
     """
 
     stamp: int
     gt: G
     estimates: dict[str, tuple[int, E]] = field(default_factory=dict)
     arrival: int = 0
+    arrivals: dict[str, int] = field(default_factory=dict)
 
 
 class JoinEvent(NamedTuple):
@@ -92,6 +94,8 @@ class _Waiting(Generic[E]):
     arrival: int
     payload: E
     settled: bool = False
+    received: int = 0
+    """Its own arrival (``arrival`` is the clock then, which never goes back): its delay's."""
 
 
 class StampJoiner(Generic[G, E]):
@@ -166,7 +170,7 @@ class StampJoiner(Generic[G, E]):
             if index < len(queue) and queue[index].stamp == stamp:
                 waiting = queue.pop(index)
                 waiting.settled = True
-                done.extend(self._pair(method, stamp, (stamp, waiting.payload)))
+                done.extend(self._pair(method, stamp, (stamp, waiting.payload), waiting.received))
         return done
 
     def add_estimate(
@@ -175,12 +179,13 @@ class StampJoiner(Generic[G, E]):
         """An estimate of ``method``; returns the frame sets this completes or retires."""
         if method not in self._estimates:
             raise ConfigurationError(f"unknown method '{method}'; known: {', '.join(self.methods)}")
-        now, done = self._advance(stamp if arrival is None else arrival)
+        received = stamp if arrival is None else int(arrival)
+        now, done = self._advance(received)
         pending = self._gt.get(stamp)
         if pending is not None and method in pending.waiting:
-            done.extend(self._pair(method, stamp, (stamp, payload)))
+            done.extend(self._pair(method, stamp, (stamp, payload), received))
             return done
-        waiting = _Waiting(method, stamp, now, payload)
+        waiting = _Waiting(method, stamp, now, payload, received=received)
         queue = self._estimates[method]
         queue.insert(bisect.bisect_right(queue, stamp, key=lambda item: item.stamp), waiting)
         self._estimate_order.append(waiting)
@@ -271,13 +276,15 @@ class StampJoiner(Generic[G, E]):
             self.counts[waiting.method].unmatched += 1
             self._event("unmatched", waiting.method, waiting.stamp, waiting.arrival)
             return []
-        return list(self._pair(waiting.method, gt_stamp, (waiting.stamp, waiting.payload)))
+        estimate = (waiting.stamp, waiting.payload)
+        return list(self._pair(waiting.method, gt_stamp, estimate, waiting.received))
 
     def _pair(
-        self, method: str, gt_stamp: int, estimate: tuple[int, E]
+        self, method: str, gt_stamp: int, estimate: tuple[int, E], arrival: int
     ) -> Iterable[FrameSet[G, E]]:
         pending = self._gt[gt_stamp]
         pending.frame_set.estimates[method] = estimate
+        pending.frame_set.arrivals[method] = arrival
         pending.waiting.discard(method)
         self.counts[method].matched += 1
         if not pending.waiting:

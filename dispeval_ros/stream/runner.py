@@ -1,7 +1,8 @@
 """Live evaluation: the evaluation core behind a bounded queue and one scoring thread.
 
 Transport callbacks call :meth:`LiveEvaluator.push`, which only joins by stamp (microseconds;
-the receipt time is the join's arrival clock, see :mod:`~dispeval_ros.stream.join`) and never
+the receipt time is the join's arrival clock, see :mod:`~dispeval_ros.stream.join`, and each
+estimate's delay is its receipt minus its header stamp) and never
 blocks: joined frames wait in a bounded queue, and when scoring cannot keep up the
 oldest waiting frame is dropped and counted for every method in it. A worker thread scores
 and hands each :class:`~dispeval_ros.stream.core.FrameResult` to the front end's callback.
@@ -46,7 +47,14 @@ class LiveEvaluator:
         workers: int = 1,
         keep_latencies: int = 100_000,
         clock: Callable[[], float] = time.monotonic,
+        epoch: float | None = None,
     ) -> None:
+        """``clock`` (s) times the queue; ``epoch`` (s) added to it reads the stamps' clock.
+
+        That gives receipt times (None: the wall clock's offset now, as stamps of system time
+        are; a monotonic clock so shifted never jumps back as the wall clock may).
+        """
+        self.epoch = time.time() - clock() if epoch is None else epoch
         self.core = EvaluationCore(config, error_images=error_images)
         self.on_result = on_result
         self.queue_size = max(1, queue_size)
@@ -71,13 +79,18 @@ class LiveEvaluator:
 
     # -- transport side ---------------------------------------------------------------------
 
-    def push(self, topic: str, msg: Any) -> None:
-        """Take one message (from any thread); never blocks on scoring."""
+    def push(self, topic: str, msg: Any, received: int | None = None) -> None:
+        """Take one message (from any thread); never blocks on scoring.
+
+        ``received`` (ns, the header stamps' clock): when it was received, if the transport
+        knows (give it for every message or for none); else now, by ``clock`` + ``epoch``.
+        """
         arrived = self._clock()
+        receipt = round((arrived + self.epoch) * 1e9) if received is None else int(received)
         with self._lock:
             if self._stopping:
                 return
-            ready = self.core.push(topic, msg, round(arrived * 1e9))  # receipt time
+            ready = self.core.push(topic, msg, receipt)  # the join's arrival clock
             while self.core.joiner.buffered > self.max_buffered:
                 if self.core.joiner.drop_oldest() is None:
                     break

@@ -17,7 +17,8 @@ import numpy as np
 
 from dispeval_ros.core import Scores
 from dispeval_ros.core.provenance import provenance_record
-from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
+from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import ResultsStore
@@ -134,6 +135,7 @@ class SummarizerCore:
         self._sequence_index = len(existing)
         self.sequence = self._name(self._sequence_index)
         self._pending: list[FrameScores] = []
+        self._timing: list[FrameTiming] = []
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
@@ -144,10 +146,23 @@ class SummarizerCore:
     def _name(index: int) -> str:
         return f"sequence_{index:03d}"
 
-    def add(self, stamp: int, scores: Mapping[str, Scores]) -> RunSummary | None:
-        """One frame's scores; returns a fresh summary when a unit was just written."""
+    def add(
+        self,
+        stamp: int,
+        scores: Mapping[str, Scores],
+        arrivals: Mapping[str, tuple[int, int]] | None = None,
+    ) -> RunSummary | None:
+        """One frame's scores; returns a fresh summary when a unit was just written.
+
+        ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency).
+        """
         for method, method_scores in scores.items():
             self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
+        self._timing.extend(
+            FrameTiming(self.sequence, int(stamp), method, sent, arrival)
+            for method, (sent, arrival) in (arrivals or {}).items()
+            if method in scores
+        )
         self.totals.add(self.sequence, int(stamp), scores)
         self.frames += 1
         if len({f.stamp for f in self._pending}) >= self.config.every_n:
@@ -162,12 +177,15 @@ class SummarizerCore:
             previous = counts.get(frame.method, MatchCounts(0, 0, 0, 0))
             counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
         unit = f"{self._units:06d}"
-        self.store.add_unit(self.sequence, unit, self._pending, (), counts)
+        self.store.add_unit(self.sequence, unit, self._pending, (), counts, self._timing)
         self._units += 1
         self._pending = []
+        self._timing = []
         # Live summaries come from the running totals (O(1) per frame); per-frame objectives
-        # need every frame and so read the database. finish() always uses the database.
-        source = self.totals if self.config.granularity == "sequence" else self.store
+        # and timing ones need every frame and so read the database. finish() always does.
+        timed = any(is_timing_measure(m) for m in self.config.objective_measures)
+        by_sequence = self.config.granularity == "sequence" and not timed
+        source = self.totals if by_sequence else self.store
         self.summary = summarize(source, self.config.objective_measures, self.config.granularity)
         return self.summary
 

@@ -33,7 +33,18 @@ PROBLEM_KEY = "_problem"
 """Key of the one value of an ERROR status that reports a frame which could not be scored."""
 GROUND_TRUTH = "ground_truth"
 """Status name of problems with the ground truth (no method could be scored on that frame)."""
-META_KEYS = ("_policy", "_relative", "_thresholds", "_overlapping", "_estimate_stamp")
+ESTIMATE_STAMP_KEY = "_estimate_stamp"
+ARRIVAL_KEY = "_arrival"
+"""When the estimate arrived at the evaluator (ns, the stamps' clock): receipt live, log time
+replayed from a bag."""
+DELAY_KEY = "_delay_ms"
+"""Arrival minus the estimate's header stamp, in ms (for a reader of the diagnostics)."""
+DELAY_ALARM = "latency/delay_ms"
+"""The alarm key of an estimate's delay (ms): ``latency/delay_ms=50`` beside the score ones."""
+META_KEYS = (
+    "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
+    DELAY_KEY,
+)  # fmt: skip
 CRITERION_NAMES = tuple(
     dict.fromkeys(("all", *VISIBILITY, *DEPTH, *LEGACY, *TEXTURE, "roi", "elsewhere", "unlabelled"))
 )
@@ -89,7 +100,8 @@ def _parse_limits(
             limit = float(value)
         except ValueError:
             raise ConfigurationError(
-                f"alarm {what} threshold '{item}' is not CRITERION/MEASURE=NUMBER (e.g. all/bmp=20)"
+                f"alarm {what} threshold '{item}' is not CRITERION/MEASURE=NUMBER (e.g. all/bmp=20, "
+                f"{DELAY_ALARM}=50)"
             ) from None
         key = key.strip()
         why = _never_alarms(key, limit, scored)
@@ -104,6 +116,8 @@ def _never_alarms(key: str, limit: float, scored: Collection[str] | None) -> str
     criterion, _, measure = key.rpartition("/")
     if not math.isfinite(limit):
         return f"the limit must be a finite number, got {limit}"
+    if key == DELAY_ALARM:  # the latency diagnostic: on every status with an arrival
+        return None
     if criterion.removeprefix(GT_FREE_PREFIX) not in CRITERION_NAMES:
         return (
             f"no criterion '{criterion}'; known: {', '.join(CRITERION_NAMES)} "
@@ -140,8 +154,13 @@ def scores_status(
     scores: Scores,
     alarms: AlarmThresholds | None = None,
     estimate_stamp: int | None = None,
+    arrival: int | None = None,
 ) -> StatusRecord:
-    """The status of one method on one frame: every ``criterion/measure`` plus raw sums."""
+    """The status of one method on one frame: every ``criterion/measure`` plus raw sums.
+
+    With ``arrival`` (and ``estimate_stamp``): when the estimate arrived and its delay, so a
+    summarizer stores the latency as ``dispeval bag`` does (:func:`arrival_of`).
+    """
     values: list[tuple[str, str]] = []
     level = OK
     worst = ""
@@ -163,9 +182,29 @@ def scores_status(
     values.append(("_thresholds", " ".join(format_number(t) for t in scores.thresholds)))
     values.append(("_overlapping", " ".join(scores.overlapping)))
     if estimate_stamp is not None:
-        values.append(("_estimate_stamp", str(int(estimate_stamp))))
+        values.append((ESTIMATE_STAMP_KEY, str(int(estimate_stamp))))
+        if arrival is not None:
+            delay = (int(arrival) - int(estimate_stamp)) / 1e6
+            values.append((ARRIVAL_KEY, str(int(arrival))))
+            values.append((DELAY_KEY, format_number(delay)))
+            found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
+            if found > level:
+                level, worst = found, f"delay {delay:.4g} ms"
     message = {OK: "ok", WARN: f"warning: {worst}", ERROR: f"error: {worst}"}[level]
     return StatusRecord(method, topic, level, message, tuple(values))
+
+
+def arrival_of(values: Sequence[tuple[str, str]]) -> tuple[int, int] | None:
+    """``(estimate stamp, arrival)`` of a status of :func:`scores_status`, None without them."""
+    table = dict(values)
+    if ESTIMATE_STAMP_KEY not in table or ARRIVAL_KEY not in table:
+        return None
+    try:
+        return int(table[ESTIMATE_STAMP_KEY]), int(table[ARRIVAL_KEY])
+    except ValueError:
+        raise InputError(
+            f"the diagnostic status has a malformed {ESTIMATE_STAMP_KEY} or {ARRIVAL_KEY}"
+        ) from None
 
 
 def scores_from_status(

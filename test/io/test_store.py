@@ -32,6 +32,7 @@ from dispeval_ros.core.measures import SUM_FIELDS, quantile_level
 from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.io.store import (
     RESULTS_FILE,
+    TIMING_COLUMNS,
     FrameScores,
     MatchCounts,
     Problem,
@@ -220,12 +221,12 @@ def test_csv_export_reads_back_identical_numbers(reference: Path, tmp_path: Path
         measures = store.measures()
     with open(target, newline="", encoding="utf-8") as handle:
         table = list(csv.reader(handle))
-    assert table[0] == ["sequence", "stamp", "method", "criterion", "n", *measures]
+    assert table[0] == ["sequence", "stamp", "method", "criterion", "n", *measures, *TIMING_COLUMNS]
     assert written == len(rows) == len(table) - 1 == 2 * 6 * 4 * 3 * 7
     empty = 0
     for line, row in zip(table[1:], rows, strict=True):
         assert line[:4] == [row["sequence"], str(row["stamp"]), row["method"], row["criterion"]]
-        for cell, name in zip(line[4:], ["n", *measures], strict=True):
+        for cell, name in zip(line[4 : -len(TIMING_COLUMNS)], ["n", *measures], strict=True):
             value = math.nan if cell == "" else float(cell)
             empty += cell == ""
             assert same(value, float(row[name])), (name, cell)  # type: ignore[arg-type]

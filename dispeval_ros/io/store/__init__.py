@@ -14,8 +14,14 @@ run per folder), ``rows`` (a unit's rows, made without a database), ``reader``, 
 
 from __future__ import annotations
 
-from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
-from dispeval_ros.io.store.export import FRAMES_CSV, SUMMARY_JSON, CsvExport
+from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.io.store.export import (
+    FRAMES_CSV,
+    SUMMARY_JSON,
+    TIMING_COLUMNS,
+    TIMING_JSON,
+    CsvExport,
+)
 from dispeval_ros.io.store.reader import ResultsReader
 from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
@@ -23,6 +29,7 @@ from dispeval_ros.io.store.schema import (
     FAILED_MARK,
     RESULTS_FILE,
     SCHEMA_VERSION,
+    TIMING_TABLE,
     failure_record,
 )
 from dispeval_ros.io.store.writer import ResultsWriter
@@ -34,7 +41,11 @@ __all__ = [
     "RESULTS_FILE",
     "SCHEMA_VERSION",
     "SUMMARY_JSON",
+    "TIMING_COLUMNS",
+    "TIMING_JSON",
+    "TIMING_TABLE",
     "FrameScores",
+    "FrameTiming",
     "MatchCounts",
     "PreparedUnit",
     "Problem",

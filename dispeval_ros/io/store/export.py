@@ -14,6 +14,11 @@ FRAMES_CSV = "frames.csv"
 """Every frame row of a results folder as CSV (:meth:`CsvExport.export_csv`)."""
 SUMMARY_JSON = "summary.json"
 """The summary and provenance of a results folder (written by the run that made it)."""
+TIMING_JSON = "timing.json"
+"""The latency and rate of a results folder in ros2_benchmark's result-JSON keys."""
+TIMING_COLUMNS = ("estimate_stamp", "arrival", "delay_ms")
+"""Last in every frames.csv row: the estimate's header stamp and arrival (ns, as ``stamp``)
+and its delay, arrival − estimate stamp in ms; empty where no latency was recorded."""
 
 
 class CsvExport(ResultsReader):
@@ -29,11 +34,16 @@ class CsvExport(ResultsReader):
         try:
             with open(partial, "w", newline="", encoding="utf-8") as handle:
                 writer = csv.writer(handle)
-                writer.writerow(["sequence", "stamp", "method", "criterion", "n", *measures])
+                writer.writerow(
+                    ["sequence", "stamp", "method", "criterion", "n", *measures, *TIMING_COLUMNS]
+                )
+                arrivals = self._arrivals()
                 for row in self.frame_rows():
+                    key = (row["sequence"], row["stamp"], row["method"])
                     writer.writerow(
                         [row["sequence"], row["stamp"], row["method"], row["criterion"]]
                         + [_cell(row[name]) for name in ("n", *measures)]
+                        + _timing_cells(arrivals.get(key))
                     )
                     written += 1
             os.replace(partial, path)
@@ -45,6 +55,22 @@ class CsvExport(ResultsReader):
         return written
 
     # -- internals ---------------------------------------------------------------------------
+
+    def _arrivals(self) -> dict[tuple[object, object, object], tuple[int, int]]:
+        """(sequence, stamp, method) → (estimate stamp, arrival) of every recorded estimate."""
+        if not self.records_timing():
+            return {}
+        rows = self._db.execute(
+            "SELECT sequence, stamp, method, estimate_stamp, arrival FROM timing"
+        )
+        return {(seq, stamp, method): (sent, arrival) for seq, stamp, method, sent, arrival in rows}
+
+
+def _timing_cells(entry: tuple[int, int] | None) -> list[str]:
+    if entry is None:
+        return ["", "", ""]
+    sent, arrival = entry
+    return [str(sent), str(arrival), repr((arrival - sent) / 1e6)]
 
 
 def _cell(value: object) -> str:

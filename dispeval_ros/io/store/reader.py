@@ -13,7 +13,7 @@ from typing import TypeVar
 import numpy as np
 
 from dispeval_ros.core.measures import Scores, quantile_level
-from dispeval_ros.core.records import MatchCounts, Problem
+from dispeval_ros.core.records import FrameTiming, MatchCounts, Problem
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.schema import (
@@ -21,6 +21,7 @@ from dispeval_ros.io.store.schema import (
     _FRAME_ORDER,
     _ORDERED_FRAMES,
     RESULTS_FILE,
+    TIMING_TABLE,
     _check_config,
     _check_tables,
     _config_rows,
@@ -30,6 +31,7 @@ from dispeval_ros.io.store.schema import (
     _state,
     _where,
     damaged,
+    has_table,
 )
 
 _Store = TypeVar("_Store", bound="ResultsReader")
@@ -321,6 +323,28 @@ class ResultsReader:
             (sequence,),
         )
         return {method: MatchCounts(*counts) for method, *counts in rows}
+
+    def records_timing(self) -> bool:
+        """Whether arrival times are recorded (a database written before they were: no)."""
+        return has_table(self._db, TIMING_TABLE)
+
+    def timing(self, sequence: str) -> dict[str, list[FrameTiming]] | None:
+        """Per method (first-seen order), its estimates' arrivals in arrival order.
+
+        None: no latency recorded (a database written before arrival times were).
+        """
+        if not self.records_timing():
+            return None
+        rows = self._db.execute(
+            "SELECT t.stamp, t.method, t.estimate_stamp, t.arrival FROM timing t "
+            "LEFT JOIN methods m ON m.name = t.method WHERE t.sequence = ? "
+            "ORDER BY COALESCE(m.ordinal, 1 << 62), t.method, t.arrival, t.stamp",
+            (sequence,),
+        )
+        found: dict[str, list[FrameTiming]] = {}
+        for stamp, method, sent, arrival in rows:
+            found.setdefault(method, []).append(FrameTiming(sequence, stamp, method, sent, arrival))
+        return found
 
     def problems(self, sequence: str | None = None) -> list[Problem]:
         """Recorded problems of one sequence (or all), in the order they were written."""

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
+from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.store.schema import _BLOB, _Layout
 
@@ -25,6 +25,7 @@ class PreparedUnit:
     criteria: dict[str, bool]
     problem_rows: list[tuple[object, ...]]
     count_rows: list[tuple[object, ...]]
+    timing_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -38,6 +39,7 @@ def prepare_unit(
     frames: Sequence[FrameScores],
     problems: Sequence[Problem] = (),
     counts: Mapping[str, MatchCounts] | None = None,
+    timing: Sequence[FrameTiming] = (),
 ) -> PreparedUnit:
     """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
     layout = _unit_layout(unit, frames)
@@ -54,8 +56,21 @@ def prepare_unit(
         (sequence, method, sequence, c.matched, c.unmatched, c.dropped, c.failed)
         for method, c in (counts or {}).items()
     ]
+    timing_rows: list[tuple[object, ...]] = []
+    for entry in timing:
+        if entry.sequence != sequence:
+            raise ValueError(f"unit '{unit}' of {sequence} holds a time of {entry.sequence}")
+        timing_rows.append(
+            (
+                sequence,
+                int(entry.stamp),
+                entry.method,
+                int(entry.estimate_stamp),
+                int(entry.arrival),
+            )
+        )
     return PreparedUnit(
-        sequence, unit, layout, frame_rows, methods, criteria, problem_rows, count_rows
+        sequence, unit, layout, frame_rows, methods, criteria, problem_rows, count_rows, timing_rows
     )
 
 

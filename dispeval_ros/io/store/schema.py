@@ -47,6 +47,28 @@ _SCHEMA = (
 )
 
 
+TIMING_TABLE = "timing"
+_TIMING_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS timing (sequence TEXT NOT NULL, stamp INTEGER NOT NULL, "
+    "method TEXT NOT NULL, estimate_stamp INTEGER NOT NULL, arrival INTEGER NOT NULL, "
+    "PRIMARY KEY (sequence, stamp, method))"
+)
+"""When each method's estimate of a frame arrived (``stamp``: the GT frame's). Made with a new
+database; one written before it existed has none and reads as "no latency recorded" (a run
+resumed onto it records none either, so its latency is never that of a part of its frames)."""
+_INSERT_TIMING = (
+    "INSERT INTO timing (sequence, stamp, method, estimate_stamp, arrival) VALUES (?, ?, ?, ?, ?)"
+)
+
+
+def has_table(connection: sqlite3.Connection, name: str) -> bool:
+    """Whether the database holds table ``name`` (those added after the first schema)."""
+    row = connection.execute(
+        "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (name,)
+    ).fetchone()
+    return row is not None
+
+
 def failure_record(unit: str) -> str:
     """The unit name under which a unit that failed every attempt is recorded.
 
@@ -276,7 +298,7 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        for statement in _SCHEMA:
+        for statement in (*_SCHEMA, _TIMING_SCHEMA):
             connection.execute(statement)
         connection.executemany(
             "INSERT INTO run (key, ordinal, value) VALUES (?, ?, ?)",

@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TypeVar
 
-from dispeval_ros.core.records import FrameScores, MatchCounts, Problem
+from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
 from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.reader import ResultsReader
@@ -17,9 +17,11 @@ from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
+    _INSERT_TIMING,
     _PROVENANCE_TABLE,
     FAILED_MARK,
     RESULTS_FILE,
+    TIMING_TABLE,
     _check_config,
     _clear,
     _config_rows,
@@ -118,16 +120,17 @@ class ResultsWriter(ResultsReader):
         frames: Sequence[FrameScores],
         problems: Sequence[Problem] = (),
         counts: Mapping[str, MatchCounts] | None = None,
+        timing: Sequence[FrameTiming] = (),
     ) -> None:
         """Write one unit of work in one transaction and mark it done; a done unit is a no-op.
 
-        Frames, problems and the added match counts are all-or-nothing, so a kill can never
-        leave half a unit, and adding it again after a resume changes nothing.
+        Frames, problems, arrival times and the added match counts are all-or-nothing, so a
+        kill can never leave half a unit, and adding it again after a resume changes nothing.
         """
         self._require_writable()
         if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
-        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts))
+        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts, timing))
 
     def _written(self, sequence: str, unit: str, failure: bool) -> bool:
         """Whether writing ``unit`` is a no-op: it is done (a failure record: its unit is)."""
@@ -179,6 +182,14 @@ class ResultsWriter(ResultsReader):
                 problem_rows,
             )
             self._db.executemany(_ADD_COUNTS, count_rows)
+            if prepared.timing_rows and self.records_timing():  # an older database: none
+                try:
+                    self._db.executemany(_INSERT_TIMING, prepared.timing_rows)
+                except sqlite3.IntegrityError:
+                    raise ValueError(
+                        f"unit '{unit}' of {sequence} holds the arrival of an estimate "
+                        "(stamp, method) that another unit already stored"
+                    ) from None
             self._db.execute(
                 "INSERT INTO units (sequence, unit, ordinal) "
                 "VALUES (?, ?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM units))",
@@ -262,8 +273,29 @@ class ResultsWriter(ResultsReader):
                     "FROM match_counts ORDER BY sequence, ordinal"
                 ),
             )
+            self._add_timing(other)
         self._layout = self._read_layout()
         return len(units)
+
+    def _add_timing(self, other: ResultsReader) -> None:
+        """Copy ``other``'s arrival times; results without any leave none (not a part of them)."""
+        if not self.records_timing():
+            return
+        if not other.records_timing():
+            self._db.execute(f"DROP TABLE {TIMING_TABLE}")
+            return
+        try:
+            self._db.executemany(
+                _INSERT_TIMING,
+                other._db.execute(
+                    "SELECT sequence, stamp, method, estimate_stamp, arrival FROM timing"
+                ),
+            )
+        except sqlite3.IntegrityError:
+            raise ConfigurationError(
+                f"{other.path} holds arrival times (sequence, stamp, method) that {self.path} "
+                "holds already"
+            ) from None
 
     def set_sequence(self, sequence: str, source: str, info: Mapping[str, object]) -> None:
         """Record (or replace) a sequence's metadata: bag path, camera, topics, start/end."""
