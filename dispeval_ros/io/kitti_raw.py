@@ -286,13 +286,17 @@ def camera_poses(drive: RawDrive) -> list[np.ndarray | str]:
     IMU points through ``T_cam_imu = extrinsic · imu_to_velo``; its pose is the oxts unit's
     (:func:`oxts_poses`) times ``T_cam_imu⁻¹``, so ``poses[t]⁻¹ · poses[t + k]`` is the pose of
     the camera at ``t + k`` in its frame at ``t``. A frame whose oxts file is unreadable gets
-    the one-line reason instead (the other frames keep their poses: only relative poses count).
+    the one-line reason instead (the other frames keep their poses: only relative poses count),
+    as does one whose latitude is not within ±90° (the Mercator ``ln tan`` is undefined there).
     """
     samples: dict[int, np.ndarray] = {}
     out: list[np.ndarray | str] = []
     for index, file in enumerate(drive.streams["oxts"].files):
         try:
             samples[index] = read_oxts(file)
+            if not abs(samples[index][0]) < 90:  # Mercator: the log of a negative tangent
+                del samples[index]
+                raise InputError(f"{file}: the latitude must be within ±90°, not a pose")
         except InputError as error:
             out.append(str(error))
             continue

@@ -252,12 +252,17 @@ def _copy_drive(drive: Path, target: Path, oxts: bool = True) -> Path:
     return copy
 
 
+@pytest.mark.parametrize("latitude", ["nan", "95.0"])
 def test_an_unusable_pose_is_a_problem_of_its_pairs_only(
-    capsys: pytest.CaptureFixture[str], drive: Path, estimates: dict[str, Path], tmp_path: Path
+    capsys: pytest.CaptureFixture[str],
+    drive: Path,
+    estimates: dict[str, Path],
+    tmp_path: Path,
+    latitude: str,
 ) -> None:
     copy = _copy_drive(drive, tmp_path)
     bad = copy / "oxts" / "data" / "0000000005.txt"
-    bad.write_text("nan " + " ".join(bad.read_text().split()[1:]) + "\n")
+    bad.write_text(f"{latitude} " + " ".join(bad.read_text().split()[1:]) + "\n")
     code, out, err = run(capsys, "--scene", str(copy), *est_args(estimates), *QUICK,
                          "--egomotion", "--json")  # fmt: skip
     assert code == 0, err
