@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dispeval_ros.cli import common, protocol_eval, temporal_eval
+from dispeval_ros.cli import common, egomotion_eval, protocol_eval, temporal_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, ModelResult, Reference, Scores, evaluate_models
@@ -112,6 +112,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     common.add_camera_options(parser)
     protocol_eval.add_options(parser)
     temporal_eval.add_options(parser)
+    egomotion_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument(
         "--out",
@@ -197,6 +198,7 @@ def _provenance(
         ]
     if args.temporal is not None:
         configuration["temporal"] = args.temporal
+    configuration.update(egomotion_eval.configuration(args))
     return provenance_record(configuration, {"files": files_sha256(inputs)})
 
 
@@ -417,7 +419,7 @@ def _write_out(
     args: argparse.Namespace,
     scored: list[_Scored],
     provenance: dict[str, object],
-    temporal: dict[str, object] | None,
+    extras: dict[str, object],
 ) -> str:
     """Write ``--out`` as a bag run's results folder; the line saying what was written."""
     from dispeval_ros.core.records import FrameScores
@@ -438,7 +440,7 @@ def _write_out(
             for stamp, one in enumerate(scored)
         ],
         "camera": _camera_dict(scored[0].frame.camera),
-        **({} if temporal is None else {"temporal": temporal}),
+        **extras,
     }
     files = write_scored_folder(
         args.out, sequence, bag_location(where), info, frames, provenance
@@ -490,6 +492,7 @@ def run(args: argparse.Namespace) -> int:
 
     scene_only = [o for o, v in (("--frame", args.frame), ("--gt-source", args.gt_source)) if v]
     temporal_eval.check_options(args)
+    egomotion_eval.check_options(args)
     if args.protocol is not None:
         if args.out is not None:
             raise ConfigurationError(
@@ -522,6 +525,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         frames = [_files_frame(args, estimates)]
     pairs = temporal_eval.plan(args, [(f.frame, f.gt_source, f.estimates) for f in frames])
+    motion = egomotion_eval.plan(args, [(f.frame, f.estimates) for f in frames])
     if len(frames) > 1:
         one_file = [
             option
@@ -560,7 +564,9 @@ def run(args: argparse.Namespace) -> int:
     scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
     references = [s.reference for s in scored]
     temporal = temporal_eval.score(pairs, evaluator, references, args.est_scale)
-    result = None if temporal is None else temporal.to_dict()
+    ego = egomotion_eval.score(motion, args, frames[0].camera)
+    done = [(n, r) for n, r in (("temporal", temporal), ("egomotion", ego)) if r is not None]
+    result: dict[str, object] = {name: one.to_dict() for name, one in done}
     inputs = [path for s in scored for path in s.frame.inputs]
     wanted = args.json or args.out is not None  # the text alone hashes nothing
     provenance = _provenance(args, evaluator, scored, inputs) if wanted else {}
@@ -575,14 +581,13 @@ def run(args: argparse.Namespace) -> int:
                 "frames": [entry for s in scored for entry in _entries(s)],
                 "per_frame": documents,
             }
-        if result is not None:
-            document["temporal"] = result
+        document.update(result)
         document["provenance"] = provenance
         print_json(document)
         return 0
     print("\n\n".join(_text(evaluator, s) for s in scored))
-    if temporal is not None:
-        print("\n" + temporal.text())
+    for _, one in done:
+        print("\n" + one.text())
     if written is not None:
         print(f"\n{written}")
     return 0

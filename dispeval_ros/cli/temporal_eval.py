@@ -126,26 +126,98 @@ class Plan:
     gaps: tuple[Gap, ...]
 
 
-def _numbers(folder: Path, names: Sequence[str]) -> list[int]:
-    """The frames' numbers, increasing in the scene's order (else one line)."""
+def numbered(option: str, folder: Path, names: Sequence[str]) -> list[int]:
+    """The frames' numbers, increasing in the scene's order (else one line naming ``option``)."""
     numbers = []
     for name in names:
         if not name.isdigit():
             raise ConfigurationError(
-                f"--temporal: frame {name} of {folder} is not numbered; consecutive frames are "
+                f"{option}: frame {name} of {folder} is not numbered; consecutive frames are "
                 "told by their numbers (e.g. 0006, 0007)"
             )
         numbers.append(int(name))
     for (a, m), (b, n) in itertools.pairwise(zip(names, numbers, strict=True)):
         if n <= m:
             raise ConfigurationError(
-                f"--temporal: frames {a} and {b} of {folder} are out of order (or the same number)"
+                f"{option}: frames {a} and {b} of {folder} are out of order (or the same number)"
             )
     return numbers
 
 
 def _source(source: str) -> str:
     return GT_SOURCE_TEXT.get(source, source)
+
+
+@dataclass(frozen=True)
+class Runs:
+    """Runs of frames ``step`` numbers apart (indices) per method, their files, the gaps."""
+
+    frames: tuple[str, ...]
+    runs: dict[str, list[list[int]]]
+    files: dict[str, dict[int, Path]]
+    gaps: tuple[Gap, ...]
+
+
+def frame_runs(
+    option: str,
+    args: argparse.Namespace,
+    frames: Sequence[tuple[str | None, str | None, Estimates]],
+    step: int = 1,
+) -> Runs:
+    """Each method's runs of frames ``step`` numbers apart; one line if there is no pair.
+
+    ``frames``: each scored frame's name, GT source and estimates, in the scene's order. With
+    ``step`` k the frames fall into k classes by their number modulo k, each paired within
+    itself: a run ends where a class's next frame is missing or its GT source changes.
+    """
+    names = [name or "" for name, _, _ in frames]
+    sources = [source or "" for _, source, _ in frames]
+    if len(names) < 2:
+        chosen = " (--frame chose it)" if args.frame is not None else ""
+        raise ConfigurationError(
+            f"{option} scores pairs of consecutive frames, but one frame of {args.scene} is "
+            f"scored ({names[0] if names else 'none'}){chosen}"
+        )
+    numbers = numbered(option, args.scene, names)
+    files: dict[str, dict[int, Path]] = {}
+    for index, (_, _, estimates) in enumerate(frames):
+        for method, path in estimates:
+            files.setdefault(method, {})[index] = path
+    classes: dict[int, list[int]] = {}
+    for index, number in enumerate(numbers):
+        classes.setdefault(number % step, []).append(index)
+    runs: dict[str, list[list[int]]] = {method: [] for method in files}
+    gaps: list[Gap] = []
+    for method, have in files.items():
+        for scene in classes.values():
+            indices = [i for i in scene if i in have]
+            if not indices:
+                gaps.append(Gap(method, None, None, tuple(names[i] for i in scene), 0))
+                continue
+            runs[method].append([indices[0]])
+            if indices[0] > scene[0]:
+                before = tuple(names[i] for i in scene if i < indices[0])
+                gaps.append(Gap(method, None, names[indices[0]], before, 0))
+            for a, b in itertools.pairwise(indices):
+                changes = None if sources[a] == sources[b] else (sources[a], sources[b])
+                if numbers[b] == numbers[a] + step and changes is None:
+                    runs[method][-1].append(b)
+                    continue
+                missing = tuple(names[i] for i in scene if a < i < b)
+                unscored = (numbers[b] - numbers[a]) // step - 1 - len(missing)
+                gaps.append(Gap(method, names[a], names[b], missing, unscored, changes))
+                runs[method].append([b])
+            if indices[-1] < scene[-1]:
+                after = tuple(names[i] for i in scene if i > indices[-1])
+                gaps.append(Gap(method, names[indices[-1]], None, after, 0))
+        runs[method].sort()
+    if all(len(run) < 2 for method_runs in runs.values() for run in method_runs):
+        apart = "consecutive frames" if step == 1 else f"frames {step} numbers apart"
+        raise ConfigurationError(
+            f"{option}: no method has estimates of two {apart} of {args.scene} "
+            f"(frames scored: {', '.join(names)})"
+        )
+    return Runs(tuple(names), runs, files, tuple(gaps))
 
 
 def plan(
@@ -157,44 +229,8 @@ def plan(
     """
     if args.temporal is None:
         return None
-    names = [name or "" for name, _, _ in frames]
-    sources = [source or "" for _, source, _ in frames]
-    if len(names) < 2:
-        chosen = " (--frame chose it)" if args.frame is not None else ""
-        raise ConfigurationError(
-            f"--temporal scores pairs of consecutive frames, but one frame of {args.scene} is "
-            f"scored ({names[0] if names else 'none'}){chosen}"
-        )
-    numbers = _numbers(args.scene, names)
-    files: dict[str, dict[int, Path]] = {}
-    for index, (_, _, estimates) in enumerate(frames):
-        for method, path in estimates:
-            files.setdefault(method, {})[index] = path
-    runs: dict[str, list[list[int]]] = {}
-    gaps: list[Gap] = []
-    last = len(names) - 1
-    for method, have in files.items():
-        indices = sorted(have)
-        runs[method] = [[indices[0]]]
-        if indices[0] > 0:
-            gaps.append(Gap(method, None, names[indices[0]], tuple(names[: indices[0]]), 0))
-        for a, b in itertools.pairwise(indices):
-            changes = None if sources[a] == sources[b] else (sources[a], sources[b])
-            if numbers[b] == numbers[a] + 1 and changes is None:
-                runs[method][-1].append(b)
-                continue
-            unscored = numbers[b] - numbers[a] - (b - a)
-            missing = tuple(names[a + 1 : b])
-            gaps.append(Gap(method, names[a], names[b], missing, unscored, changes))
-            runs[method].append([b])
-        if indices[-1] < last:
-            gaps.append(Gap(method, names[indices[-1]], None, tuple(names[indices[-1] + 1 :]), 0))
-    if all(len(run) < 2 for method_runs in runs.values() for run in method_runs):
-        raise ConfigurationError(
-            f"--temporal: no method has estimates of two consecutive frames of {args.scene} "
-            f"(frames scored: {', '.join(names)})"
-        )
-    return Plan(args.temporal, tuple(names), runs, files, tuple(gaps))
+    found = frame_runs("--temporal", args, frames)
+    return Plan(args.temporal, found.frames, found.runs, found.files, found.gaps)
 
 
 @dataclass

@@ -277,3 +277,34 @@ def oxts_poses(samples: np.ndarray) -> np.ndarray:
         )
         poses[index] = pose
     return invert_rigid(poses[0]) @ poses
+
+
+def camera_poses(drive: RawDrive) -> list[np.ndarray | str]:
+    """Each frame's pose of the left rectified camera in the odometry frame, or why it has none.
+
+    The camera (the one ``K·[I | 0]`` projects for: :meth:`LidarCalibration.ros_view`) sees
+    IMU points through ``T_cam_imu = extrinsic · imu_to_velo``; its pose is the oxts unit's
+    (:func:`oxts_poses`) times ``T_cam_imu⁻¹``, so ``poses[t]⁻¹ · poses[t + k]`` is the pose of
+    the camera at ``t + k`` in its frame at ``t``. A frame whose oxts file is unreadable gets
+    the one-line reason instead (the other frames keep their poses: only relative poses count),
+    as does one whose latitude is not within ±90° (the Mercator ``ln tan`` is undefined there).
+    """
+    samples: dict[int, np.ndarray] = {}
+    out: list[np.ndarray | str] = []
+    for index, file in enumerate(drive.streams["oxts"].files):
+        try:
+            samples[index] = read_oxts(file)
+            if not abs(samples[index][0]) < 90:  # Mercator: the log of a negative tangent
+                del samples[index]
+                raise InputError(f"{file}: the latitude must be within ±90°, not a pose")
+        except InputError as error:
+            out.append(str(error))
+            continue
+        out.append("")
+    if samples:
+        extrinsic = drive.calibration.ros_view()[0]
+        camera_to_imu = invert_rigid(extrinsic @ drive.imu_to_velo)
+        poses = oxts_poses(np.stack(list(samples.values())))
+        for index, pose in zip(samples, poses, strict=True):
+            out[index] = pose @ camera_to_imu
+    return out
