@@ -120,6 +120,18 @@ class _Steps:
             print(f"report: [{elapsed:5.1f} s] {text}", file=self.stream, flush=True)
 
 
+def check_objective_measures(stored: list[str], given: list[str]) -> None:
+    """Refuse ``--objective-measures`` naming neither a stored measure nor a timing measure."""
+    from dispeval_ros.core.timing import TIMING_MEASURES
+
+    unknown = [m for m in given if m not in stored and m not in TIMING_MEASURES]
+    if unknown:
+        raise ConfigurationError(
+            f"--objective-measures {' '.join(unknown)}: neither stored ({', '.join(stored)}) "
+            f"nor a timing measure ({', '.join(TIMING_MEASURES)})"
+        )
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Read the database, make thumbnails and figures if asked, write the HTML."""
     from dispeval_ros.io.store import ResultsStore
@@ -150,6 +162,8 @@ def run_command(args: argparse.Namespace) -> int:
                 )
         steps.say("reading the results database")
         measures, granularity = run_objectives(args)
+        if args.objective_measures is not None:
+            check_objective_measures(store.measures(), args.objective_measures)
         data = build_report_data(
             store,
             title=args.title,

@@ -73,7 +73,7 @@ def latency_accuracy_figure(
     A panel: ``sequence``, ``criterion``, ``methods``, ``x``, ``y`` (per method) and
     ``first_group`` (the names ringed).
     """
-    from dispeval_ros.report.figures import _figure, measure_label
+    from dispeval_ros.report.figures import _figure, _plain_numbers, measure_label
 
     figure = _figure(5.2 * len(panels), 4.2)
     axes_list = figure.subplots(1, len(panels), squeeze=False)[0]
@@ -102,6 +102,7 @@ def latency_accuracy_figure(
                 axes.annotate(name, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=8)
         axes.set_xlabel(latency_label(latency))
         axes.set_ylabel(measure_label(measure, unit))
+        _plain_numbers(axes)
         axes.set_title(f"{panel['sequence']} · {panel['criterion']}", fontsize=10, loc="left")
         axes.grid(True, alpha=0.3)
         axes.legend(fontsize=7, loc="best")
@@ -114,7 +115,7 @@ def delays_figure(panels: Sequence[Mapping[str, Any]], path: Path | None) -> Any
     """The delay of every frame per method, one panel per sequence (whole frame numbers)."""
     from matplotlib.ticker import MaxNLocator
 
-    from dispeval_ros.report.figures import _figure
+    from dispeval_ros.report.figures import _figure, _plain_numbers
 
     figure = _figure(5.2 * len(panels), 3.6)
     axes_list = figure.subplots(1, len(panels), squeeze=False)[0]
@@ -126,6 +127,7 @@ def delays_figure(panels: Sequence[Mapping[str, Any]], path: Path | None) -> Any
         axes.xaxis.set_major_locator(MaxNLocator(integer=True))
         axes.set_xlabel("frame")
         axes.set_ylabel(DELAY_LABEL)
+        _plain_numbers(axes)
         axes.set_title(str(panel["sequence"]), fontsize=10, loc="left")
         axes.grid(True, alpha=0.3)
         axes.legend(fontsize=7, loc="best", title="method", title_fontsize=7)

@@ -136,9 +136,14 @@ def test_the_png_figures_have_units_on_both_axes(ranked: dict[str, Any]) -> None
     delays.figure.canvas.draw()
     assert delays.get_xlabel() == "frame"
     assert delays.get_ylabel() == "delay [ms]"
-    ticks = [t for t in delays.get_xticks() if 1 <= t <= FRAMES]
-    assert ticks
-    assert all(float(t).is_integer() for t in ticks)
+    assert delays.get_xlim()[0] <= 1
+    assert delays.get_xlim()[1] >= FRAMES
+    short = {"sequence": "two", "delays": {"a": [[0, 1.0], [1, 2.5]]}}  # a plain axis: 1.2, 1.4…
+    for axes in (delays, *delays_figure([short], None).axes):
+        axes.figure.canvas.draw()
+        ticks = [t for t in axes.get_xticks() if axes.get_xlim()[0] <= t <= axes.get_xlim()[1]]
+        assert len(ticks) >= 2
+        assert all(float(t).is_integer() for t in ticks), ticks
 
 
 def test_the_front_of_two_axes() -> None:
@@ -177,3 +182,19 @@ def test_browser_plots_latency_against_accuracy(
     assert old.locator("#latency-view svg").count() == 0
     assert not errors
     old.close()
+
+
+def test_objectives_the_models_cannot_use_leave_the_groups_out_not_the_plot(
+    ranked: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    with ResultsStore.open(ranked["out"]) as store:
+        latency = build_report_data(store, objective_measures=["sze", "a42"])["latency"]
+    assert "a42 were not computed" in latency["problem"]
+    block = latency["sequences"]["drive"]
+    assert block["groups"] is None
+    assert block["first_group"] == []
+    assert block["values"] == ranked["data"]["latency"]["sequences"]["drive"]["values"]
+    assert main(["report", str(ranked["out"]), "-o", str(ranked["root"] / "x.html"),
+                 "--objective-measures", "sze", "a42"]) == 2  # fmt: skip
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "--objective-measures a42: neither stored" in line
