@@ -15,6 +15,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from dispeval_ros.core.records import FrameTiming
 from dispeval_ros.core.timing import TIMING_MEASURES
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import json_safe
@@ -59,12 +60,13 @@ def _first_group(summary: SequenceSummary) -> list[str]:
     return [m for m, group in summary.models.groups.items() if group == 1]
 
 
-def _sequence_latency(store: ResultsStore, summary: SequenceSummary) -> dict[str, Any] | None:
+def _sequence_latency(
+    store: ResultsStore, summary: SequenceSummary, entries: dict[str, list[FrameTiming]]
+) -> dict[str, Any] | None:
     """One sequence's latency: values per method, per-frame delays, the first A* group."""
     timing = summary.timing
     if not timing:  # no arrival recorded for the sequence
         return None
-    entries = store.timing(summary.sequence) or {}
     frame_of = {stamp: i for i, stamp in enumerate(store.stamps(summary.sequence))}
     delays = {}
     for method, found in entries.items():
@@ -98,7 +100,8 @@ def latency_data(
     few arrivals), the groups are left out and ``problem`` says why.
     """
     base = {"measures": latency_measures(), "not_recorded": NOT_RECORDED}
-    if not store.records_timing():
+    found = {s: store.timing(s) or {} for s in store.sequences()} if store.records_timing() else {}
+    if not any(found.values()):  # an older database, or results scored from files
         return {**base, "recorded": False}
     problem = None
     try:
@@ -106,7 +109,9 @@ def latency_data(
     except ConfigurationError as error:
         problem = str(error)
         summary = summarize(store)  # the timing values do not depend on the objectives
-    sequences = {s.sequence: _sequence_latency(store, s) for s in summary.sequences}
+    sequences = {
+        s.sequence: _sequence_latency(store, s, found[s.sequence]) for s in summary.sequences
+    }
     if problem:
         for block in sequences.values():
             if block:

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 from bag_support import NOISE, fast_rough_bag
-from test_report import browser, open_report  # noqa: F401  (the browser fixture)
+from test_report import browser, make_small_store, open_report  # noqa: F401  (browser fixture)
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import measure_unit
@@ -25,6 +25,7 @@ from dispeval_ros.io.store import TIMING_TABLE, ResultsStore
 from dispeval_ros.offline.make_bag import method_latency_ns
 from dispeval_ros.report.data import build_report_data
 from dispeval_ros.report.figures import FIGURES, write_figures
+from dispeval_ros.report.latency import latency_data
 from dispeval_ros.report.latency_figures import (
     LATENCY_FIGURES,
     delays_figure,
@@ -114,6 +115,14 @@ def test_an_older_database_says_latency_not_recorded(ranked: dict[str, Any]) -> 
     assert latency["not_recorded"].startswith("latency not recorded")
     assert "sequences" not in latency
     assert sorted(p.name for p in (ranked["root"] / "old_png").iterdir()) == sorted(FIGURES)
+
+
+def test_results_without_arrivals_say_latency_not_recorded(tmp_path: Path) -> None:
+    """A database with the timing table but no arrival in it (as ``eval --out`` writes one)."""
+    with ResultsStore.open(make_small_store(tmp_path)) as store:
+        assert store.records_timing()
+        assert all(not store.timing(s) for s in store.sequences())
+        assert latency_data(store)["recorded"] is False
 
 
 def test_the_png_figures_have_units_on_both_axes(ranked: dict[str, Any]) -> None:

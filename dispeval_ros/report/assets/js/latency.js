@@ -15,6 +15,11 @@
     return chosen;
   }
 
+  /* obj[key] if obj has it as its own (a method called "__proto__" is data, not the prototype). */
+  function own(obj, key) {
+    return Object.prototype.hasOwnProperty.call(obj, key) ? obj[key] : undefined;
+  }
+
   function buildLatencyView() {
     const info = D.raw.latency;
     ui.latencyPlots = el('div', { id: 'latency-plots', className: 'bars' });
@@ -58,11 +63,11 @@
     const missing = [];
     for (const s of built.seqs) {
       const name = D.sequences[s].name;
-      const block = info.sequences[name];
+      const block = own(info.sequences, name);
       if (!block) { missing.push(name); continue; }
       const frames = built.common[s] || [];
       const methods = built.methodIdx.filter(function (m) {
-        return Object.prototype.hasOwnProperty.call(block.values, D.methods[m]);
+        return own(block.values, D.methods[m]) !== undefined;
       });
       const points = methods.map(function (m) {
         const method = D.methods[m];
@@ -167,7 +172,7 @@
     const width = 420, height = 300;
     const box = { left: 64, right: width - 100, top: 24, bottom: height - 40 };
     const count = D.seqFrames[s].count;
-    const series = methods.map(function (m) { return block.delays[D.methods[m]] || []; });
+    const series = methods.map(function (m) { return own(block.delays, D.methods[m]) || []; });
     const all = [];
     for (const rows of series) for (const row of rows) all.push(row[1]);
     const yr = extent(all);
