@@ -180,7 +180,7 @@ def run_command(args: argparse.Namespace) -> int:
 
             steps.say(
                 f"figures: importing matplotlib (its first use builds a font cache) and drawing "
-                f"{len(FIGURES)} figures"
+                f"{len(FIGURES)} figures (and the latency ones where arrival times are recorded)"
             )
             written = write_figures(store, args.png, latency=data["latency"])
             steps.say("figures: done")
