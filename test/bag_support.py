@@ -76,3 +76,45 @@ def database_content(folder: Path) -> tuple[list[tuple], ...]:
     )
     connection.close()
     return content
+
+
+NOISE = {"rough": 3.0, "fine": 0.3}
+"""px of Gaussian noise on the GT: rough is logged first (the fastest), fine after it."""
+
+
+def fast_rough_bag(root: Path, frames: int) -> tuple[Path, list[str], dict[str, int]]:
+    """A synthetic drive bag where the fastest method (``rough``) is the least accurate.
+
+    Returns the bag, the ``dispeval bag`` command line of its two methods (``--out`` ROOT/res,
+    every criterion) and each method's make-bag order (the lower, the sooner it is logged).
+    """
+    import numpy as np
+
+    from dispeval_ros.offline.make_bag import estimates_from, synthetic_frames, write_bag
+    from dispeval_ros.testbed.methods import default_methods
+
+    drive = list(synthetic_frames(frames, 192, 64, 10.0, seed=4))
+    rng = np.random.default_rng(5)
+    sources = []
+    for name, noise in NOISE.items():
+        folder = root / name
+        folder.mkdir()
+        for index, frame in enumerate(drive):
+            assert frame.gt is not None
+            gt = frame.gt.astype(np.float32)
+            noisy = gt + rng.normal(0, noise, gt.shape).astype(np.float32)
+            noisy = np.where(np.isfinite(gt), np.clip(noisy, 0.5, None), np.inf)
+            np.save(folder / f"{index:06d}.npy", noisy.astype(np.float32))
+        sources.append(estimates_from(name, folder))
+    bag = root / "drive"
+    summary = write_bag(
+        bag, iter(drive), storage="rosbag2-sqlite3", methods=default_methods(192)[:1],
+        estimates=sources,
+    )  # fmt: skip
+    orders = {m: i for i, m in enumerate(summary["methods"])}  # type: ignore[arg-type]
+    args = bag_args(bag, root / "res", "--criteria", "all")
+    start = args.index("--method")
+    args[start : start + 2 * len(METHODS)] = [
+        item for name in NOISE for item in ("--method", f"{name}={disparity_topic(name)}")
+    ]
+    return bag, args, orders

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
+from dispeval_ros.cli.common import add_objective_options
 from dispeval_ros.errors import ConfigurationError
 
 HELP = "write an interactive HTML report (offline, one file) of a results database"
@@ -54,6 +56,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="frames with error-map thumbnails when --bag is given (default 4)",
     )
     parser.add_argument("--title", help="report title (default: from the results folder)")
+    objectives = parser.add_argument_group(
+        "the A* Groups of the latency view (default: the run's, from RESULTS/summary.json)"
+    )
+    add_objective_options(objectives)
+    objectives.set_defaults(objectives=None)
     parser.add_argument(
         "--quiet",
         action="store_true",
@@ -62,10 +69,35 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run_command)
 
 
+def _folder(results: Path) -> Path:
+    return results.parent if results.suffix == ".sqlite" or results.is_file() else results
+
+
 def default_output(results: Path) -> Path:
     """``RESULTS/report.html`` (beside results.sqlite when a file is given)."""
-    folder = results.parent if results.suffix == ".sqlite" or results.is_file() else results
-    return folder / "report.html"
+    return _folder(results) / "report.html"
+
+
+def run_objectives(args: argparse.Namespace) -> tuple[list[str] | None, str]:
+    """The objective measures and granularity of the latency view's A* Groups.
+
+    Those given, else the run's (``summary.json`` beside the database: what its A* Groups were
+    computed on, ``latency_p95`` included if the run ranked on it), else the default rule.
+    """
+    from dispeval_ros.io.store import SUMMARY_JSON
+
+    recorded: dict[str, Any] = {}
+    try:
+        document = json.loads((_folder(args.results) / SUMMARY_JSON).read_text("utf-8"))
+        if isinstance(document, dict):
+            recorded = document
+    except (OSError, ValueError):
+        pass  # no summary (or not one of ours): the default rule
+    measures = args.objective_measures
+    if measures is None and isinstance(recorded.get("objective_measures"), list):
+        measures = [str(m) for m in recorded["objective_measures"]]
+    granularity = args.objectives or recorded.get("granularity")
+    return measures, granularity if isinstance(granularity, str) else "sequence"
 
 
 class _Steps:
@@ -86,6 +118,18 @@ class _Steps:
         if not self.quiet:
             elapsed = time.perf_counter() - self.started
             print(f"report: [{elapsed:5.1f} s] {text}", file=self.stream, flush=True)
+
+
+def check_objective_measures(stored: list[str], given: list[str]) -> None:
+    """Refuse ``--objective-measures`` naming neither a stored measure nor a timing measure."""
+    from dispeval_ros.core.timing import TIMING_MEASURES
+
+    unknown = [m for m in given if m not in stored and m not in TIMING_MEASURES]
+    if unknown:
+        raise ConfigurationError(
+            f"--objective-measures {' '.join(unknown)}: neither stored ({', '.join(stored)}) "
+            f"nor a timing measure ({', '.join(TIMING_MEASURES)})"
+        )
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -117,7 +161,16 @@ def run_command(args: argparse.Namespace) -> int:
                     "error maps: none (no frame found again; a run without ground truth has none)"
                 )
         steps.say("reading the results database")
-        data = build_report_data(store, title=args.title, thumbnails=thumbnails)
+        measures, granularity = run_objectives(args)
+        if args.objective_measures is not None:
+            check_objective_measures(store.measures(), args.objective_measures)
+        data = build_report_data(
+            store,
+            title=args.title,
+            thumbnails=thumbnails,
+            objective_measures=measures,
+            granularity=granularity,
+        )
         from dispeval_ros.report.html import write_report
 
         size = write_report(data, out)  # first: a problem with the figures keeps the page
@@ -127,9 +180,9 @@ def run_command(args: argparse.Namespace) -> int:
 
             steps.say(
                 f"figures: importing matplotlib (its first use builds a font cache) and drawing "
-                f"{len(FIGURES)} figures"
+                f"{len(FIGURES)} figures (and the latency ones where arrival times are recorded)"
             )
-            written = write_figures(store, args.png)
+            written = write_figures(store, args.png, latency=data["latency"])
             steps.say("figures: done")
             print(f"figures: {', '.join(str(path) for path in written)}")
     return 0

@@ -4,7 +4,8 @@
 rows as compressed typed arrays), ``html`` assembles one self-contained HTML file whose
 script recomputes the objectives and the models in the browser, ``figures`` draws the same
 views as static PNGs, ``maps`` makes the error-map thumbnails from the bags (dense maps, or
-a LiDAR run's scattered points) and ``reference`` says what the scores are measured against.
+a LiDAR run's scattered points), ``latency`` the latency-vs-accuracy view's data and
+``reference`` says what the scores are measured against.
 """
 
 from dispeval_ros.report.data import (
@@ -16,6 +17,7 @@ from dispeval_ros.report.data import (
     selection_objectives,
 )
 from dispeval_ros.report.html import render_html, write_report
+from dispeval_ros.report.latency import latency_data
 from dispeval_ros.report.maps import error_thumbnails
 from dispeval_ros.report.reference import reference_text
 
@@ -26,6 +28,7 @@ __all__ = [
     "default_selection",
     "error_thumbnails",
     "evaluate_selection",
+    "latency_data",
     "reference_text",
     "render_html",
     "selection_objectives",

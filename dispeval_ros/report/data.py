@@ -38,6 +38,7 @@ from dispeval_ros.core.objectives import default_objective_measures, has_points
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.latency import latency_data
 from dispeval_ros.report.maps import (  # the thumbnails: also from here, their old home
     DEFAULT_THUMBNAILS,  # noqa: F401
     ERROR_RANGE_PX,  # noqa: F401
@@ -363,8 +364,14 @@ def build_report_data(
     title: str | None = None,
     thumbnails: Mapping[str, Any] | None = None,
     level: int = 6,
+    objective_measures: Sequence[str] | None = None,
+    granularity: str = "sequence",
 ) -> dict[str, Any]:
-    """The JSON-able report data of a results database (see the module docstring)."""
+    """The JSON-able report data of a results database (see the module docstring).
+
+    ``objective_measures``, ``granularity``: the run's, for the latency view's A* Groups
+    (:func:`~dispeval_ros.report.latency.latency_data`); None: the default rule.
+    """
     sequences, methods, criteria = store.sequences(), store.methods(), store.criteria()
     measures = store.measures()
     if not methods or not measures:
@@ -435,4 +442,5 @@ def build_report_data(
         "arrays": arrays,
         "defaults": {**defaults, "model": "astar"},
         "thumbnails": json_safe(thumbnails) if thumbnails else None,
+        "latency": latency_data(store, objective_measures, granularity),
     }

@@ -2,16 +2,18 @@
 
 The same views as the HTML report, for the report's default selection (or any
 :class:`~dispeval_ros.report.data.Selection`): the group table with the interpretation, the
-per-frame score curves per method (failures in red), per-criterion bars and the parallel
-coordinates of the u2 terms of a group. Figures are drawn on ``matplotlib.figure.Figure``
-objects (no pyplot, no global backend switch); names are never parsed as mathtext.
+per-frame score curves per method (failures in red), per-criterion bars, the parallel
+coordinates of the u2 terms of a group, and where latency is recorded latency against accuracy
+and the delay per frame (:mod:`~dispeval_ros.report.latency_figures`). Figures are drawn on
+``matplotlib.figure.Figure`` objects (no pyplot, no global backend switch); names are never
+parsed as mathtext.
 """
 
 from __future__ import annotations
 
 import math
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +30,8 @@ from dispeval_ros.report.data import (
     default_selection,
     evaluate_selection,
 )
+from dispeval_ros.report.latency import latency_data
+from dispeval_ros.report.latency_figures import write_latency_figures
 from dispeval_ros.report.recipes import measure_recipe, recipe_values
 from dispeval_ros.report.reference import reference_text
 
@@ -291,8 +295,14 @@ def write_figures(
     directory: Path,
     selection: Selection | None = None,
     group: int = 1,
+    latency: Mapping[str, Any] | None = None,
 ) -> list[Path]:
-    """Write the four PNG figures of ``selection`` (default: the report's) to ``directory``."""
+    """Write the PNG figures of ``selection`` (default: the report's) to ``directory``.
+
+    The four of :data:`FIGURES`, and where latency is recorded the two of
+    :data:`~dispeval_ros.report.latency_figures.LATENCY_FIGURES` (``latency``: the report
+    data's block, made here when not given).
+    """
     try:
         import matplotlib
     except ImportError:
@@ -362,4 +372,12 @@ def write_figures(
         )
         criteria_bars_figure(bar_values, methods, criteria, groups, measure, paths[2], unit)
         parallel_figure(matrix, methods, names, models, group, paths[3])
+        paths += write_latency_figures(
+            store,
+            directory,
+            latency_data(store) if latency is None else latency,
+            criteria[0] if criteria else "",
+            measure,
+            relative,
+        )
     return paths

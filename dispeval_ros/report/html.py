@@ -38,6 +38,7 @@ SCRIPT_PARTS = (
     "render",
     "curves",
     "bars",
+    "latency",
     "parallel",
     "thumbnails",
     "start",  # main(); the closure closes

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_support import METHODS, bag_args
+from bag_support import METHODS, bag_args, fast_rough_bag
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.cli.output import WIDTH
@@ -29,13 +29,11 @@ from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import TIMING_COLUMNS, TIMING_JSON, TIMING_TABLE, ResultsStore
 from dispeval_ros.offline.make_bag import (
     disparity_topic,
-    estimates_from,
     method_latency_ns,
     synthetic_frames,
     write_bag,
 )
 from dispeval_ros.summary import summarize
-from dispeval_ros.testbed.methods import default_methods
 
 FRAMES = 12
 MISSED = {2: (3, 7)}
@@ -186,37 +184,10 @@ def _groups(out: Path, measures: list[str]) -> dict[str, int]:
     return dict(models.groups)
 
 
-NOISE = {"rough": 3.0, "fine": 0.3}
-"""px of Gaussian noise on the GT: rough is logged first (the fastest), fine after it."""
-
-
 def test_the_fastest_and_the_most_accurate_share_the_first_group(tmp_path: Path) -> None:
-    frames = list(synthetic_frames(FRAMES, 192, 64, 10.0, seed=4))
-    rng = np.random.default_rng(5)
-    sources = []
-    for name, noise in NOISE.items():
-        folder = tmp_path / name
-        folder.mkdir()
-        for index, frame in enumerate(frames):
-            assert frame.gt is not None
-            gt = frame.gt.astype(np.float32)
-            noisy = gt + rng.normal(0, noise, gt.shape).astype(np.float32)
-            noisy = np.where(np.isfinite(gt), np.clip(noisy, 0.5, None), np.inf)
-            np.save(folder / f"{index:06d}.npy", noisy.astype(np.float32))
-        sources.append(estimates_from(name, folder))
-    bag = tmp_path / "drive"
-    summary = write_bag(
-        bag, iter(frames), storage="rosbag2-sqlite3", methods=default_methods(192)[:1],
-        estimates=sources,
-    )  # fmt: skip
-    orders = {m: i for i, m in enumerate(summary["methods"])}  # type: ignore[arg-type]
+    _, args, orders = fast_rough_bag(tmp_path, FRAMES)
     assert orders["rough"] < orders["fine"]
     out = tmp_path / "res"
-    args = bag_args(bag, out, "--criteria", "all")
-    start = args.index("--method")
-    args[start : start + 2 * len(METHODS)] = [
-        item for name in NOISE for item in ("--method", f"{name}={disparity_topic(name)}")
-    ]
     assert main(args) == 0
     alone = _groups(out, ["sze", "bmpre"])
     assert alone == {"fine": 1, "rough": 2}  # over accuracy alone, rough is dominated

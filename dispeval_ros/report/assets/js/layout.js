@@ -87,7 +87,7 @@
       el('h2', { text: 'Run' }), buildRunInfo(),
     ]);
 
-    const main = el('main', {}, [models, curves, bars, parallel, thumbs, run]);
+    const main = el('main', {}, [models, curves, bars, buildLatencyView(), parallel, thumbs, run]);
     app.appendChild(header);
     app.appendChild(el('div', { className: 'layout' }, [ui.controls, main]));
   }

@@ -13,6 +13,7 @@
     renderCurves(built, selection);
     const t3 = performance.now();
     renderBars(built);
+    renderLatency(built);
     const t4 = performance.now();
     renderParallel(built);
     const t5 = performance.now();
