@@ -189,13 +189,19 @@ def camera_from_args(args: argparse.Namespace) -> Camera | None:
     return None
 
 
-def add_objective_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """``--objectives`` and ``--objective-measures``: what the models compare over frames."""
+def add_objective_options(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, default: str | None = "sequence"
+) -> None:
+    """``--objectives`` and ``--objective-measures``: what the models compare over frames.
+
+    ``default`` None: the command takes the stored run's granularity (``report``).
+    """
     parser.add_argument(
         "--objectives",
         choices=GRANULARITIES,
-        default="sequence",
-        help="model objectives per (criterion, sequence) (default) or per (criterion, frame)",
+        default=default,
+        help="model objectives per (criterion, sequence) or per (criterion, frame) (default: "
+        + (f"{default})" if default else "the stored run's)"),
     )
     parser.add_argument(
         "--objective-measures",

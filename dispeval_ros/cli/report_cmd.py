@@ -59,8 +59,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     objectives = parser.add_argument_group(
         "the A* Groups of the latency view (default: the run's, from RESULTS/summary.json)"
     )
-    add_objective_options(objectives)
-    objectives.set_defaults(objectives=None)
+    add_objective_options(objectives, default=None)
     parser.add_argument(
         "--quiet",
         action="store_true",
