@@ -33,6 +33,7 @@ COL_BAD = COL_SUM_SQ_Z + 1
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _row_geometry(
     row: np.ndarray,
+    us: np.ndarray,
     y: int,
     rt: np.ndarray,
     geo: np.ndarray,
@@ -43,8 +44,9 @@ def _row_geometry(
     """Landing ``(x', y')``, predicted disparity, ``Qz`` and "lands in ``box``" of one row.
 
     Branch-free, so it vectorises: a missing estimate (NaN), no depth (``s ≤ 0``) or a point
-    behind the camera fail the comparisons and land nowhere. ``box`` is (x_lo, x_hi, y_lo,
-    y_hi) of the landings kept.
+    behind the camera fail the comparisons and land nowhere. ``us``: ``(x − cx)/f`` of every
+    column (:func:`_columns`: one division per column, not per pixel). ``box`` is (x_lo, x_hi,
+    y_lo, y_hi) of the landings kept.
     """
     xs, ys, predicted, depth, lands = out
     f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
@@ -56,7 +58,7 @@ def _row_geometry(
     for x in range(row.shape[0]):
         s = np.float64(row[x]) - offset + doffs
         z = fb / s
-        u = (x - cx) / f
+        u = us[x]
         qz = z * (rt[2, 0] * u + bz) + rt[2, 3]
         inverse = 1.0 / qz
         xp = cx + f * (z * (rt[0, 0] * u + bx) + rt[0, 3]) * inverse
@@ -69,13 +71,84 @@ def _row_geometry(
         lands[x] = ok
 
 
-Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+Row = tuple[np.ndarray, np.ndarray, np.ndarray]
+XS, YS, PREDICTED, DEPTH, WX, WY, QUAD, NEAREST = 0, 1, 2, 3, 4, 5, 6, 10
+"""Rows of the float64 row scratch (``QUAD``: four rows, a bilinear support's values)."""
+CORNER, NEAR = 0, 1
+"""Rows of the int64 row scratch: flat index of the support's corner and of the nearest pixel."""
+LANDS, TARGET_EDGE = 0, 1
+"""Rows of the bool row scratch."""
 
 
 def row_buffers(width: int) -> Row:
-    """Scratch of :func:`_row_geometry`: x', y', predicted disparity, Qz, lands."""
-    held = [np.empty(width, np.float64) for _ in range(4)]
-    return (held[0], held[1], held[2], held[3], np.empty(width, np.bool_))
+    """Scratch of one row: float64 rows (:data:`XS` …), int64 flat indices, bool rows."""
+    return (
+        np.empty((NEAREST + 1, width), np.float64),
+        np.empty((2, width), np.int64),
+        np.empty((2, width), np.bool_),
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``u = (x − cx)/f`` of every column, the same IEEE operations as per pixel."""
+    us = np.empty(width, np.float64)
+    for x in range(width):
+        us[x] = (x - geo[1]) / geo[0]
+    return us
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _landing(
+    row: np.ndarray,
+    us: np.ndarray,
+    y: int,
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    box: tuple[float, float, float, float],
+    shape: tuple[int, int],
+    scratch: Row,
+) -> None:  # pragma: no cover - compiled
+    """:func:`_row_geometry` of one row, then each landing's support corner and nearest pixel.
+
+    Vectorised passes only, so the gathers that follow (:func:`_gather`) are bare loads.
+    """
+    values, index, marks = scratch
+    xs, ys, wx, wy = values[XS], values[YS], values[WX], values[WY]
+    _row_geometry(
+        row, us, y, rt, geo, offset, box, (xs, ys, values[PREDICTED], values[DEPTH], marks[LANDS])
+    )
+    height, width = shape
+    corner, near = index[CORNER], index[NEAR]
+    for x in range(row.shape[0]):  # 0 where the point lands nowhere: every gather stays inside
+        x0 = min(int(xs[x]), width - 2)
+        y0 = min(int(ys[x]), height - 2)
+        wx[x] = xs[x] - x0
+        wy[x] = ys[x] - y0
+        corner[x] = y0 * width + x0
+        near[x] = int(ys[x] + 0.5) * width + int(xs[x] + 0.5)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _gather(
+    flat: np.ndarray, corner: np.ndarray, width: int, quad: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """The four values of each bilinear support (``flat``: an image as one row)."""
+    for x in range(corner.shape[0]):
+        i = corner[x]
+        quad[0, x] = flat[i]
+        quad[1, x] = flat[i + 1]
+        quad[2, x] = flat[i + width]
+        quad[3, x] = flat[i + width + 1]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _lerp(quad: np.ndarray, wx: np.ndarray, wy: np.ndarray, x: int) -> float:
+    """:func:`_bilinear` of gathered values (the same operations, so the same result)."""
+    a, b, c, d = quad[0, x], quad[1, x], quad[2, x], quad[3, x]
+    top = a + wx[x] * (b - a)
+    return top + wy[x] * (c + wx[x] * (d - c) - top)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -88,7 +161,7 @@ def motion_splat(
     photometric: float,
     zbuffer: np.ndarray,
     moving: np.ndarray,
-    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    scratch: Row,
 ) -> None:  # pragma: no cover - compiled
     """The z-buffer of ``t + k`` (float32 disparities, largest = nearest) from the points of ``t``.
 
@@ -97,31 +170,58 @@ def motion_splat(
     through which a point it hides would look visible. Points that fail the photometric check
     (``images``: left at ``t`` and ``t + k``, or 0×0) are marked in ``moving`` (written in full)
     and hide nothing: a car that drove away would otherwise hide the road it uncovered.
+
+    Done as one write per point, at its support's corner ``(⌊x'⌋, ⌊y'⌋)``, then a 2×2 maximum
+    filter (:func:`_support_maximum`): the maximum is exact, so this is the same z-buffer at a
+    quarter of the scattered writes.
     """
     height, width = source.shape
     zbuffer[:] = -np.inf
-    moving[:] = False
+    flat = zbuffer.reshape(-1)
     box = (0.0, np.float64(width - 1), 0.0, np.float64(height - 1))
-    xs, ys, predicted, _, lands = scratch
+    values, index, marks = scratch
+    predicted, quad, wx, wy = values[PREDICTED], values[QUAD : QUAD + 4], values[WX], values[WY]
+    corner, lands = index[CORNER], marks[LANDS]
+    us = _columns(width, geo)
     src_image, tgt_image = images
     photo = src_image.shape[0] == height and tgt_image.shape[0] == height
+    tgt_flat = tgt_image.reshape(-1)
     for y in range(height):
-        _row_geometry(source[y], y, rt, geo, offset, box, scratch)
+        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch)
+        flags = moving[y]
+        if photo:
+            _gather(tgt_flat, corner, width, quad)
+            src_row = src_image[y]
+            for x in range(width):  # branch-free: whether a point moved is not predictable
+                seen = _lerp(quad, wx, wy, x)
+                flags[x] = lands[x] & (abs(np.float64(src_row[x]) - seen) > photometric)
+        else:
+            flags[:] = False
         for x in range(width):
-            if not lands[x]:
-                continue
-            value = np.float32(predicted[x])
-            x0 = min(int(xs[x]), width - 2)
-            y0 = min(int(ys[x]), height - 2)
-            if photo:  # branch-free: whether a point moved is not predictable
-                seen = _bilinear(tgt_image, x0, y0, xs[x] - x0, ys[x] - y0)
-                flag = abs(np.float64(src_image[y, x]) - seen) > photometric
-                moving[y, x] = flag
-                value = np.float32(-np.inf) if flag else value
-            zbuffer[y0, x0] = max(zbuffer[y0, x0], value)
-            zbuffer[y0, x0 + 1] = max(zbuffer[y0, x0 + 1], value)
-            zbuffer[y0 + 1, x0] = max(zbuffer[y0 + 1, x0], value)
-            zbuffer[y0 + 1, x0 + 1] = max(zbuffer[y0 + 1, x0 + 1], value)
+            if lands[x] and not flags[x]:
+                i = corner[x]
+                flat[i] = max(flat[i], np.float32(predicted[x]))
+    _support_maximum(zbuffer)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _support_maximum(zbuffer: np.ndarray) -> None:  # pragma: no cover - compiled
+    """In place: each pixel becomes the maximum of itself and its left, upper, upper-left pixel.
+
+    A corner written at ``(x0, y0)`` so reaches ``x0 + 1`` and ``y0 + 1``. Row by row, each
+    row's horizontal maximum kept before it is overwritten; every loop vectorises.
+    """
+    height, width = zbuffer.shape
+    above = np.full(width, -np.inf, np.float32)
+    here = np.empty(width, np.float32)
+    for y in range(height):
+        row = zbuffer[y]
+        here[0] = row[0]
+        for x in range(1, width):
+            here[x] = max(row[x], row[x - 1])
+        for x in range(width):
+            row[x] = max(here[x], above[x])
+        above, here = here, above
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -138,14 +238,15 @@ def motion_classify(
     thresholds: np.ndarray,
     sums: np.ndarray,
     maps: tuple[np.ndarray, np.ndarray, np.ndarray],
-    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    scratch: Row,
 ) -> None:  # pragma: no cover - compiled
     """Every source pixel's status and residual; adds the sums of its cell (``cells`` < 0: none).
 
     ``source``/``target``: (disparity with NaN where missing, edge mask); ``zbuffer`` and
     ``moving`` from :func:`motion_splat`; ``limits``: (border margin px, occlusion tolerance px).
     ``maps``: the status (int8), disparity residual and depth residual (float32, NaN unless
-    counted) of every pixel, written in full.
+    counted) of every pixel, written in full. Per row: vectorised geometry, bare gathers, one
+    vectorised pass for the masks and residuals, the row's sums.
     """
     src, src_edges = source
     tgt, tgt_edges = target
@@ -154,24 +255,33 @@ def motion_classify(
     fb, doffs = geo[3], geo[4]
     margin, tolerance = limits[0], limits[1]
     box = (margin, np.float64(width - 1) - margin, margin, np.float64(height - 1) - margin)
-    xs, ys, predicted, depth, lands = scratch
+    values, index, marks = scratch
+    predicted, depth, nearest = values[PREDICTED], values[DEPTH], values[NEAREST]
+    quad, wx, wy = values[QUAD : QUAD + 4], values[WX], values[WY]
+    corner, near = index[CORNER], index[NEAR]
+    lands, tgt_edge = marks[LANDS], marks[TARGET_EDGE]
+    us = _columns(width, geo)
+    tgt_flat = tgt.reshape(-1)
+    z_flat = zbuffer.reshape(-1)
+    edges_flat = tgt_edges.reshape(-1)
     for y in range(height):
         row = src[y]
-        _row_geometry(row, y, rt, geo, offset, box, scratch)
+        _landing(row, us, y, rt, geo, offset, box, (height, width), scratch)
+        _gather(tgt_flat, corner, width, quad)
+        for x in range(width):
+            i = near[x]
+            nearest[x] = z_flat[i]
+            tgt_edge[x] = edges_flat[i]
+        edge_row = src_edges[y]
+        moving_row = moving[y]
+        status_row = status_map[y]
+        r_row = r_map[y]
+        rz_row = rz_map[y]
         for x in range(width):  # branch-free: masks are not predictable
-            xp = xs[x]  # 0 where the point lands nowhere: every gather stays inside
-            yp = ys[x]
-            x0 = min(int(xp), width - 2)
-            y0 = min(int(yp), height - 2)
-            wx = xp - x0
-            wy = yp - y0
-            row_near = int(yp + 0.5)
-            column_near = int(xp + 0.5)
-            observed = _bilinear(tgt, x0, y0, wx, wy) - offset
+            observed = _lerp(quad, wx, wy, x) - offset
             value = predicted[x]
-            nearest = np.float64(zbuffer[row_near, column_near])
-            hidden = nearest > np.float64(np.float32(value)) + tolerance
-            edge = src_edges[y, x] | tgt_edges[row_near, column_near]
+            hidden = nearest[x] > np.float64(np.float32(value)) + tolerance
+            edge = edge_row[x] | tgt_edge[x]
             status = (
                 MISSING
                 if not np.float64(row[x]) - offset + doffs > 0.0
@@ -184,16 +294,16 @@ def motion_classify(
                 else EDGE
                 if edge
                 else MOVING
-                if moving[y, x]
+                if moving_row[x]
                 else COUNTED
             )
             counted = status == COUNTED
             r = observed - value if counted else np.nan
             rz = fb / (observed + doffs) - depth[x] if counted else np.nan
-            status_map[y, x] = status
-            r_map[y, x] = r
-            rz_map[y, x] = rz
-        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
+            status_row[x] = status
+            r_row[x] = r
+            rz_row[x] = rz
+        _row_sums(status_row, r_row, rz_row, cells[y], thresholds, sums)
 
 
 MASKED_CELLS = 4
