@@ -378,14 +378,16 @@ def _fit_offset(
     """The disparity offset that minimises the sum of absolute residuals.
 
     On a sparse grid of pixels (:data:`FIT_STRIDE`) passing the masks that need no z-buffer;
-    each step solves the linearised problem exactly (:func:`~.kernels.motion.l1_step`). The
-    absolute value lets moving pixels the photometric check missed and hidden points pass
-    without pulling the offset; squares would also trade noise against it (the offset changes
-    how much the depth amplifies the noise). Under a constant bias every static pixel's
+    each step solves the linearised problem exactly (the weighted median of the inliers'
+    steps, :func:`~.kernels.motion.l1_candidates`). The absolute value lets moving pixels the
+    photometric check missed and hidden points pass without pulling the offset; squares would
+    also trade noise against it (the offset changes how much the depth amplifies the noise).
+    Under a constant bias every static pixel's
     residual is 0 at the bias: the fit finds it exactly.
     """
     samples = km.fit_samples(source.disparity, source.edges, FIT_STRIDE)
     out = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
+    candidates = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
     offset = 0.0
     for _ in range(FIT_ITERATIONS):
         written = km.offset_residuals(
@@ -401,7 +403,9 @@ def _fit_offset(
         )
         if written < FIT_MINIMUM:
             break
-        step, observability = km.l1_step(out[0][:written], out[1][:written], FIT_FLOOR)
+        kept, total = km.l1_candidates(out[0][:written], out[1][:written], FIT_FLOOR, candidates)
+        steps = candidates[0][:kept]
+        step, observability = km.weighted_median(steps, candidates[1], np.argsort(steps), total)
         if not observability >= OBSERVABLE:
             break
         offset += step

@@ -331,12 +331,8 @@ def _row_sums(
                 _add(sums, cells[x], status[x], r[x], rz[x], thresholds)
         return
     for cell in range(n_cells):
-        n = 0.0
-        by_status = np.zeros(STATUSES, np.float64)
-        for x in range(status.shape[0]):  # status counts: a small scatter
-            inside = cells[x] == cell
-            n += 1.0 if inside else 0.0
-            by_status[status[x]] += 1.0 if inside else 0.0
+        by_status = _status_counts(status, cells, cell)
+        n = by_status.sum()  # each pixel of the cell has one status: whole numbers, exact
         sum_abs = total = sum_sq = sum_abs_z = sum_sq_z = 0.0
         for x in range(status.shape[0]):  # residual terms: vectorises (selects, no branches)
             counted = (cells[x] == cell) & (status[x] == COUNTED)
@@ -362,6 +358,31 @@ def _row_sums(
             for x in range(status.shape[0]):  # NaN (not counted) is never above a threshold
                 bad += 1.0 if (cells[x] == cell) & (abs(np.float64(r[x])) > limit) else 0.0
             totals[COL_BAD + i] += bad
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _status_counts(
+    status: np.ndarray, cells: np.ndarray, cell: int
+) -> np.ndarray:  # pragma: no cover - compiled
+    """How many pixels of ``cell`` have each status: seven counters, compared, no scatter.
+
+    A scatter into seven counters stalls on its own stores (a run of one status adds to one
+    counter); whole-number counts are exact in any order.
+    """
+    c0 = c1 = c2 = c3 = c4 = c5 = c6 = 0
+    for x in range(status.shape[0]):
+        code = np.int64(status[x]) if cells[x] == cell else np.int64(-1)
+        c0 += code == COUNTED
+        c1 += code == MISSING
+        c2 += code == BORDER
+        c3 += code == HIDDEN
+        c4 += code == MISSING_TARGET
+        c5 += code == EDGE
+        c6 += code == MOVING
+    out = np.empty(STATUSES, np.float64)
+    out[COUNTED], out[MISSING], out[BORDER], out[HIDDEN] = c0, c1, c2, c3
+    out[MISSING_TARGET], out[EDGE], out[MOVING] = c4, c5, c6
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -493,21 +514,21 @@ def offset_residuals(
 
 
 @njit(cache=True, nogil=True)
-def l1_step(
-    residuals: np.ndarray, slopes: np.ndarray, floor: float
-) -> tuple[float, float]:  # pragma: no cover - compiled
-    """The step ``Δ`` minimising ``Σ |r + J·Δ|`` over the inliers, and the mean ``|J|``.
+def l1_candidates(
+    residuals: np.ndarray, slopes: np.ndarray, floor: float, out: tuple[np.ndarray, np.ndarray]
+) -> tuple[int, float]:  # pragma: no cover - compiled
+    """The inliers' steps ``−r/J`` and weights ``|J|`` (into ``out``): how many, their total.
 
     Inliers: ``|r − median| ≤ max(floor, 4 · 1.4826 · MAD)`` (a moving car's residual of
-    tens of px is no evidence about the offset). The step is the weighted median of ``−r/J``
-    with weights ``|J|``: pixels where the offset changes the residual most decide it.
-    Returns ``(0, 0)`` when nothing is left.
+    tens of px is no evidence about the offset). The step ``Δ`` minimising ``Σ |r + J·Δ|`` is
+    the weighted median of the steps (:func:`weighted_median`): pixels where the offset changes
+    the residual most decide it. The sort between the two is numpy's (vectorised; numba's is
+    several times slower on a few thousand values).
     """
     n = residuals.shape[0]
     centre = np.median(residuals)
     bound = max(floor, 4.0 * 1.4826 * np.median(np.abs(residuals - centre)))
-    steps = np.empty(n, np.float64)
-    weights = np.empty(n, np.float64)
+    steps, weights = out
     kept = 0
     total = 0.0
     for i in range(n):
@@ -517,9 +538,21 @@ def l1_step(
             weights[kept] = weight
             total += weight
             kept += 1
+    return kept, total
+
+
+@njit(cache=True, nogil=True)
+def weighted_median(
+    steps: np.ndarray, weights: np.ndarray, order: np.ndarray, total: float
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The step where the running weight in ``order`` first reaches half, and the mean weight.
+
+    ``steps``/``weights``: the ``kept`` candidates of :func:`l1_candidates`, ``order`` their
+    ascending order; returns ``(0, 0)`` when there are none.
+    """
+    kept = order.shape[0]
     if kept == 0:
         return 0.0, 0.0
-    order = np.argsort(steps[:kept])
     half = 0.5 * total
     running = 0.0
     for i in range(kept):
