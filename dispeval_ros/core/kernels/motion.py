@@ -71,9 +71,9 @@ def _row_geometry(
         lands[x] = ok
 
 
-Row = tuple[np.ndarray, np.ndarray, np.ndarray]
-XS, YS, PREDICTED, DEPTH, WX, WY, QUAD, NEAREST = 0, 1, 2, 3, 4, 5, 6, 10
-"""Rows of the float64 row scratch (``QUAD``: four rows, a bilinear support's values)."""
+Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+XS, YS, PREDICTED, DEPTH, WX, WY, NEAREST = 0, 1, 2, 3, 4, 5, 6
+"""Rows of the float64 row scratch."""
 CORNER, NEAR = 0, 1
 """Rows of the int64 row scratch: flat index of the support's corner and of the nearest pixel."""
 LANDS, TARGET_EDGE = 0, 1
@@ -81,9 +81,13 @@ LANDS, TARGET_EDGE = 0, 1
 
 
 def row_buffers(width: int) -> Row:
-    """Scratch of one row: float64 rows (:data:`XS` …), int64 flat indices, bool rows."""
+    """Scratch of one row: float64 rows, a support's values, int64 flat indices, bool rows.
+
+    A bilinear support's four values are float32: exact for a disparity or a grey level.
+    """
     return (
         np.empty((NEAREST + 1, width), np.float64),
+        np.empty((4, width), np.float32),
         np.empty((2, width), np.int64),
         np.empty((2, width), np.bool_),
     )
@@ -114,7 +118,7 @@ def _landing(
 
     Vectorised passes only, so the gathers that follow (:func:`_gather`) are bare loads.
     """
-    values, index, marks = scratch
+    values, _, index, marks = scratch
     xs, ys, wx, wy = values[XS], values[YS], values[WX], values[WY]
     _row_geometry(
         row, us, y, rt, geo, offset, box, (xs, ys, values[PREDICTED], values[DEPTH], marks[LANDS])
@@ -134,19 +138,25 @@ def _landing(
 def _gather(
     flat: np.ndarray, corner: np.ndarray, width: int, quad: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """The four values of each bilinear support (``flat``: an image as one row)."""
+    """The four values of each bilinear support (``flat``: an image as one row).
+
+    Unsigned indices: numba then adds no wrap-around of negative ones to each load.
+    """
+    one = np.uint64(1)
+    below = np.uint64(width)
     for x in range(corner.shape[0]):
-        i = corner[x]
+        i = np.uint64(corner[x])
         quad[0, x] = flat[i]
-        quad[1, x] = flat[i + 1]
-        quad[2, x] = flat[i + width]
-        quad[3, x] = flat[i + width + 1]
+        quad[1, x] = flat[i + one]
+        quad[2, x] = flat[i + below]
+        quad[3, x] = flat[i + below + one]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _lerp(quad: np.ndarray, wx: np.ndarray, wy: np.ndarray, x: int) -> float:
     """:func:`_bilinear` of gathered values (the same operations, so the same result)."""
-    a, b, c, d = quad[0, x], quad[1, x], quad[2, x], quad[3, x]
+    a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
+    c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
     top = a + wx[x] * (b - a)
     return top + wy[x] * (c + wx[x] * (d - c) - top)
 
@@ -179,8 +189,8 @@ def motion_splat(
     zbuffer[:] = -np.inf
     flat = zbuffer.reshape(-1)
     box = (0.0, np.float64(width - 1), 0.0, np.float64(height - 1))
-    values, index, marks = scratch
-    predicted, quad, wx, wy = values[PREDICTED], values[QUAD : QUAD + 4], values[WX], values[WY]
+    values, quad, index, marks = scratch
+    predicted, wx, wy = values[PREDICTED], values[WX], values[WY]
     corner, lands = index[CORNER], marks[LANDS]
     us = _columns(width, geo)
     src_image, tgt_image = images
@@ -255,9 +265,9 @@ def motion_classify(
     fb, doffs = geo[3], geo[4]
     margin, tolerance = limits[0], limits[1]
     box = (margin, np.float64(width - 1) - margin, margin, np.float64(height - 1) - margin)
-    values, index, marks = scratch
+    values, quad, index, marks = scratch
     predicted, depth, nearest = values[PREDICTED], values[DEPTH], values[NEAREST]
-    quad, wx, wy = values[QUAD : QUAD + 4], values[WX], values[WY]
+    wx, wy = values[WX], values[WY]
     corner, near = index[CORNER], index[NEAR]
     lands, tgt_edge = marks[LANDS], marks[TARGET_EDGE]
     us = _columns(width, geo)
