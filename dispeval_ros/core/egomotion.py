@@ -155,12 +155,15 @@ def prepare_frame(
     disparity = as_disparity(estimate, what)
     if min(disparity.shape) < 2:
         raise InputError(f"{what} is {crit.size_text(disparity.shape)}: at least 2×2 is needed")
-    with np.errstate(invalid="ignore"):
-        if valid_range is None:
-            valid = np.isfinite(disparity) & (disparity > 0)
-        else:
+    if valid_range is None:
+        valid = np.empty(disparity.shape, np.bool_)
+        checked = np.empty_like(disparity)
+        km.positive_disparity(disparity, checked, valid)
+        disparity = checked
+    else:  # numpy's comparison (NEP 50 decides the precision of the bounds)
+        with np.errstate(invalid="ignore"):
             valid = (disparity >= valid_range[0]) & (disparity <= valid_range[1])
-    disparity = np.where(valid, disparity, np.float32(np.nan))
+        disparity = np.where(valid, disparity, np.float32(np.nan))
     edges = crit.discontinuities(disparity, valid, chosen.edge_gap, chosen.edge_width)
     grey = _NO_IMAGE
     if image is not None:

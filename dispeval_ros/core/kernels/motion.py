@@ -430,6 +430,19 @@ def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> floa
 
 
 @njit(cache=True, nogil=True)
+def positive_disparity(
+    disparity: np.ndarray, out: np.ndarray, valid: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Valid where finite and ``> 0``; ``out`` is the disparity there, NaN elsewhere (one pass)."""
+    flat, flat_out, flat_valid = disparity.reshape(-1), out.reshape(-1), valid.reshape(-1)
+    for i in range(flat.shape[0]):
+        value = flat[i]
+        ok = (value > 0) & (value < np.inf)  # NaN fails both
+        flat_valid[i] = ok
+        flat_out[i] = value if ok else np.float32(np.nan)
+
+
+@njit(cache=True, nogil=True)
 def fit_samples(
     source: np.ndarray, edges: np.ndarray, stride: int
 ) -> np.ndarray:  # pragma: no cover
