@@ -492,14 +492,18 @@ def offset_residuals(
     photo = src_image.shape[0] == height and tgt_image.shape[0] == height
     last_x = np.float64(width - 1)
     last_y = np.float64(height - 1)
+    us = _columns(width, geo)  # (x − cx)/f per column and (y − cy)/f per row: once, not per pixel
+    vs = np.empty(height, np.float64)
+    for y in range(height):
+        vs[y] = (y - cy) / f
     written = 0
     for i in range(samples.shape[0]):
         y = samples[i, 0]
         x = samples[i, 1]
         s = np.float64(source[y, x]) - offset + doffs
         z = fb / s
-        u = (x - cx) / f
-        v = (y - cy) / f
+        u = us[x]
+        v = vs[y]
         ax = rt[0, 0] * u + rt[0, 1] * v + rt[0, 2]
         ay = rt[1, 0] * u + rt[1, 1] * v + rt[1, 2]
         az = rt[2, 0] * u + rt[2, 1] * v + rt[2, 2]
