@@ -45,6 +45,7 @@ from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.evaluator import as_disparity
 from dispeval_ros.core.gtfree import grey8
 from dispeval_ros.core.kernels import motion as km
+from dispeval_ros.core.kernels import motion_fit as kf
 from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS
 from dispeval_ros.core.transforms import check_rotation, invert_rigid
 from dispeval_ros.errors import (
@@ -382,18 +383,18 @@ def _fit_offset(
 
     On a sparse grid of pixels (:data:`FIT_STRIDE`) passing the masks that need no z-buffer;
     each step solves the linearised problem exactly (the weighted median of the inliers'
-    steps, :func:`~.kernels.motion.l1_candidates`). The absolute value lets moving pixels the
+    steps, :func:`~.kernels.motion_fit.l1_candidates`). The absolute value lets moving pixels the
     photometric check missed and hidden points pass without pulling the offset; squares would
     also trade noise against it (the offset changes how much the depth amplifies the noise).
-    Under a constant bias every static pixel's
-    residual is 0 at the bias: the fit finds it exactly.
+    Under a constant bias every static pixel's residual is 0 at the bias: the fit finds it
+    exactly.
     """
-    samples = km.fit_samples(source.disparity, source.edges, FIT_STRIDE)
+    samples = kf.fit_samples(source.disparity, source.edges, FIT_STRIDE)
     out = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
     candidates = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
     offset = 0.0
     for _ in range(FIT_ITERATIONS):
-        written = km.offset_residuals(
+        written = kf.offset_residuals(
             source.disparity,
             target,
             images,
@@ -406,9 +407,9 @@ def _fit_offset(
         )
         if written < FIT_MINIMUM:
             break
-        kept, total = km.l1_candidates(out[0][:written], out[1][:written], FIT_FLOOR, candidates)
+        kept, total = kf.l1_candidates(out[0][:written], out[1][:written], FIT_FLOOR, candidates)
         steps = candidates[0][:kept]
-        step, observability = km.weighted_median(steps, candidates[1], np.argsort(steps), total)
+        step, observability = kf.weighted_median(steps, candidates[1], np.argsort(steps), total)
         if not observability >= OBSERVABLE:
             break
         offset += step
