@@ -512,14 +512,18 @@ def flicker_spread(
                 for x in range(width):
                     low[x] = min(low[x], np.int32(grey[x]))
                     high[x] = max(high[x], np.int32(grey[x]))
+        for x in range(width):  # float64 only, apart from the selects below: vectorises
+            square[x] = np.sqrt(square[x] / (frames - 1))
+            square_z[x] = np.sqrt(square_z[x] / (frames - 1))
+        mean_row, status_row, r_row, rz_row = mean[y], status_map[y], r_map[y], rz_map[y]
         for x in range(width):
             complete = valid[x] == frames
             moving = np.float64(high[x] - low[x]) > photometric
-            mean[y, x] = np.float32(total[x]) if complete else np.float32(np.nan)
-            status_map[y, x] = MISSING if not complete else (MOVING if moving else COUNTED)
+            mean_row[x] = np.float32(total[x]) if complete else np.float32(np.nan)
+            status_row[x] = MISSING if not complete else (MOVING if moving else COUNTED)
             counted = complete and not moving
-            r_map[y, x] = np.sqrt(square[x] / (frames - 1)) if counted else np.nan
-            rz_map[y, x] = np.sqrt(square_z[x] / (frames - 1)) if counted else np.nan
+            r_row[x] = square[x] if counted else np.nan
+            rz_row[x] = square_z[x] if counted else np.nan
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
