@@ -6,7 +6,12 @@ these are the only loops that touch every pixel. Geometry, in the left rectified
 doffs)`` and the point ``P = Z·((x − cx)/f, (y − cy)/f, 1)``; ``Q = R·P + T`` is that point in
 the camera at ``t + k``, where it lands at ``(cx + f·Qx/Qz, cy + f·Qy/Qz)`` with the
 disparity ``f·B/Qz − doffs``. ``rt`` is the 3×4 ``[R | T]``; ``geo`` is ``(f, cx, cy, f·B,
-doffs)``.
+doffs)``. The offset fit's loops (a sparse grid) are in :mod:`.motion_fit`.
+
+Every loop keeps the exact IEEE operations of the definition (no fast-math outside the sums),
+so restructuring for speed changes no result: per row, vectorised passes for the geometry and
+the masks, bare scalar loads for the gathers (numba's wrap-around of negative indices avoided
+by unsigned ones), one scattered write per point into the z-buffer.
 """
 
 from __future__ import annotations
