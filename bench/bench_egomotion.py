@@ -18,8 +18,10 @@ the same statuses and sums (checked first); numpy is ``numpy_residual`` of
 - ``flicker (5 frames)``: a window of five frames, per frame (add) and the window's sums;
   numpy: ``std(ddof=1)`` over the stack and the same masks.
 
-The best of ``--repeat`` runs of CPU time (``process_time``: a shared machine's other work
-is not counted, its contention for the core is) is printed; the process is pinned to one core.
+The best and the median of ``--repeat`` runs of CPU time (``process_time``: a shared
+machine's other work is not counted, its contention for the core is) are printed, with the
+load average at the start; the process is pinned to one core and the kernels are serial (no
+``prange``), so these are one-core numbers. The ratio is of the best times.
 """
 
 from __future__ import annotations
@@ -49,15 +51,15 @@ from test_egomotion import numpy_residual
 WINDOW = 5
 
 
-def best(run: Callable[[], object], repeat: int) -> float:
-    """The fastest of ``repeat`` runs, in ms (after one warm-up run)."""
+def timed(run: Callable[[], object], repeat: int) -> tuple[float, float]:
+    """The fastest and the median of ``repeat`` runs, in ms (after one warm-up run)."""
     run()
     times = []
     for _ in range(repeat):
         start = time.process_time()
         run()
         times.append(time.process_time() - start)
-    return 1e3 * min(times)
+    return 1e3 * min(times), 1e3 * float(np.median(times))
 
 
 def numpy_edges(disparity: np.ndarray, gap: float = 2.0) -> np.ndarray:
@@ -158,13 +160,16 @@ def main() -> None:
             WINDOW,
         ),
     ]
-    print(
-        f"{'one core, best of runs':<24} {'numba ms':>9} {'numpy ms':>9} {'ratio':>7}   (per frame)"
-    )
+    load = " ".join(f"{value:.2f}" for value in os.getloadavg())
+    print(f"one core, ms per frame (best / median of runs); load average {load}")
+    print(f"{'':<24} {'numba':>15} {'numpy':>15} {'ratio':>7}")
     for name, fast, slow, per in cases:
-        numba_ms = best(fast, args.repeat) / per
-        numpy_ms = best(slow, max(3, args.repeat // 4)) / per
-        print(f"{name:<24} {numba_ms:>9.2f} {numpy_ms:>9.2f} {numpy_ms / numba_ms:>6.1f}×")
+        numba_best, numba_median = (value / per for value in timed(fast, args.repeat))
+        numpy_best, numpy_median = (value / per for value in timed(slow, max(3, args.repeat // 4)))
+        print(
+            f"{name:<24} {numba_best:>7.2f} /{numba_median:>6.2f} {numpy_best:>7.2f} /"
+            f"{numpy_median:>6.2f} {numpy_best / numba_best:>6.1f}×"
+        )
 
 
 if __name__ == "__main__":

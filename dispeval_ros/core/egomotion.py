@@ -45,6 +45,7 @@ from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.evaluator import as_disparity
 from dispeval_ros.core.gtfree import grey8
 from dispeval_ros.core.kernels import motion as km
+from dispeval_ros.core.kernels import motion_fit as kf
 from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS
 from dispeval_ros.core.transforms import check_rotation, invert_rigid
 from dispeval_ros.errors import (
@@ -155,12 +156,15 @@ def prepare_frame(
     disparity = as_disparity(estimate, what)
     if min(disparity.shape) < 2:
         raise InputError(f"{what} is {crit.size_text(disparity.shape)}: at least 2×2 is needed")
-    with np.errstate(invalid="ignore"):
-        if valid_range is None:
-            valid = np.isfinite(disparity) & (disparity > 0)
-        else:
+    if valid_range is None:
+        valid = np.empty(disparity.shape, np.bool_)
+        checked = np.empty_like(disparity)
+        km.positive_disparity(disparity, checked, valid)
+        disparity = checked
+    else:  # numpy's comparison (NEP 50 decides the precision of the bounds)
+        with np.errstate(invalid="ignore"):
             valid = (disparity >= valid_range[0]) & (disparity <= valid_range[1])
-    disparity = np.where(valid, disparity, np.float32(np.nan))
+        disparity = np.where(valid, disparity, np.float32(np.nan))
     edges = crit.discontinuities(disparity, valid, chosen.edge_gap, chosen.edge_width)
     grey = _NO_IMAGE
     if image is not None:
@@ -378,17 +382,19 @@ def _fit_offset(
     """The disparity offset that minimises the sum of absolute residuals.
 
     On a sparse grid of pixels (:data:`FIT_STRIDE`) passing the masks that need no z-buffer;
-    each step solves the linearised problem exactly (:func:`~.kernels.motion.l1_step`). The
-    absolute value lets moving pixels the photometric check missed and hidden points pass
-    without pulling the offset; squares would also trade noise against it (the offset changes
-    how much the depth amplifies the noise). Under a constant bias every static pixel's
-    residual is 0 at the bias: the fit finds it exactly.
+    each step solves the linearised problem exactly (the weighted median of the inliers'
+    steps, :func:`~.kernels.motion_fit.l1_candidates`). The absolute value lets moving pixels the
+    photometric check missed and hidden points pass without pulling the offset; squares would
+    also trade noise against it (the offset changes how much the depth amplifies the noise).
+    Under a constant bias every static pixel's residual is 0 at the bias: the fit finds it
+    exactly.
     """
-    samples = km.fit_samples(source.disparity, source.edges, FIT_STRIDE)
+    samples = kf.fit_samples(source.disparity, source.edges, FIT_STRIDE)
     out = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
+    candidates = (np.empty(samples.shape[0], np.float64), np.empty(samples.shape[0], np.float64))
     offset = 0.0
     for _ in range(FIT_ITERATIONS):
-        written = km.offset_residuals(
+        written = kf.offset_residuals(
             source.disparity,
             target,
             images,
@@ -401,7 +407,9 @@ def _fit_offset(
         )
         if written < FIT_MINIMUM:
             break
-        step, observability = km.l1_step(out[0][:written], out[1][:written], FIT_FLOOR)
+        kept, total = kf.l1_candidates(out[0][:written], out[1][:written], FIT_FLOOR, candidates)
+        steps = candidates[0][:kept]
+        step, observability = kf.weighted_median(steps, candidates[1], np.argsort(steps), total)
         if not observability >= OBSERVABLE:
             break
         offset += step

@@ -556,3 +556,30 @@ def test_bad_frames_are_refused():
         window.add(prepare_frame(np.ones((5, 5))))
     with pytest.raises(ConfigurationError, match="occlusion_tolerance"):
         EgoMotionOptions(occlusion_tolerance=-1.0)
+
+
+def test_many_cells_and_no_images_agree_with_plain_numpy():
+    """The per-pixel path of the row sums (more than four cells) and the z-buffer without images."""
+    from dispeval_ros.core.kernels.motion import MASKED_CELLS
+
+    (f0, _, _), (f1, _, _) = drive_frame(0), drive_frame(1)
+    rng = np.random.default_rng(7)
+    e0 = f0.gt_left + rng.normal(0, 0.3, f0.gt_left.shape).astype(np.float32)
+    e1 = f1.gt_left + rng.normal(0, 0.3, f1.gt_left.shape).astype(np.float32)
+    classes = MASKED_CELLS + 2
+    labels = rng.integers(0, classes, e0.shape).astype(np.int32)
+    names = tuple(f"part{i}" for i in range(classes))
+    part = crit.CriterionSet("parts", labels, names, np.eye(classes, dtype=bool))
+    valid = rng.random(e0.shape) > 0.1  # cells < 0: not evaluated
+    partition = crit.build_partition(valid, [part])
+    source, target = prepare_frame(e0), prepare_frame(e1)
+    result = egomotion_residual(
+        source, target, drive_motion(0, 1), drive_camera(), partition, NO_FIT, keep_maps=True
+    )
+    sums, status, residual = numpy_residual(
+        source, target, drive_motion(0, 1), drive_camera(), NO_FIT, 0.0, partition.cells
+    )
+    np.testing.assert_array_equal(result.maps[0], status)
+    np.testing.assert_allclose(result.maps[1], residual, rtol=1e-6, atol=1e-6, equal_nan=True)
+    np.testing.assert_allclose(result.sums, partition.membership @ sums, rtol=1e-6, atol=1e-6)
+    assert result.summary(names[0])["n_hidden"] > 0

@@ -6,7 +6,12 @@ these are the only loops that touch every pixel. Geometry, in the left rectified
 doffs)`` and the point ``P = Z·((x − cx)/f, (y − cy)/f, 1)``; ``Q = R·P + T`` is that point in
 the camera at ``t + k``, where it lands at ``(cx + f·Qx/Qz, cy + f·Qy/Qz)`` with the
 disparity ``f·B/Qz − doffs``. ``rt`` is the 3×4 ``[R | T]``; ``geo`` is ``(f, cx, cy, f·B,
-doffs)``.
+doffs)``. The offset fit's loops (a sparse grid) are in :mod:`.motion_fit`.
+
+Every loop keeps the exact IEEE operations of the definition (no fast-math outside the sums),
+so restructuring for speed changes no result: per row, vectorised passes for the geometry and
+the masks, bare scalar loads for the gathers (numba's wrap-around of negative indices avoided
+by unsigned ones), one scattered write per point into the z-buffer.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ COL_BAD = COL_SUM_SQ_Z + 1
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _row_geometry(
     row: np.ndarray,
+    us: np.ndarray,
     y: int,
     rt: np.ndarray,
     geo: np.ndarray,
@@ -43,8 +49,9 @@ def _row_geometry(
     """Landing ``(x', y')``, predicted disparity, ``Qz`` and "lands in ``box``" of one row.
 
     Branch-free, so it vectorises: a missing estimate (NaN), no depth (``s ≤ 0``) or a point
-    behind the camera fail the comparisons and land nowhere. ``box`` is (x_lo, x_hi, y_lo,
-    y_hi) of the landings kept.
+    behind the camera fail the comparisons and land nowhere. ``us``: ``(x − cx)/f`` of every
+    column (:func:`_columns`: one division per column, not per pixel). ``box`` is (x_lo, x_hi,
+    y_lo, y_hi) of the landings kept.
     """
     xs, ys, predicted, depth, lands = out
     f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
@@ -56,7 +63,7 @@ def _row_geometry(
     for x in range(row.shape[0]):
         s = np.float64(row[x]) - offset + doffs
         z = fb / s
-        u = (x - cx) / f
+        u = us[x]
         qz = z * (rt[2, 0] * u + bz) + rt[2, 3]
         inverse = 1.0 / qz
         xp = cx + f * (z * (rt[0, 0] * u + bx) + rt[0, 3]) * inverse
@@ -69,13 +76,94 @@ def _row_geometry(
         lands[x] = ok
 
 
-Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+XS, YS, PREDICTED, DEPTH, WX, WY, NEAREST = 0, 1, 2, 3, 4, 5, 6
+"""Rows of the float64 row scratch."""
+CORNER, NEAR = 0, 1
+"""Rows of the int64 row scratch: flat index of the support's corner and of the nearest pixel."""
+LANDS, TARGET_EDGE = 0, 1
+"""Rows of the bool row scratch."""
 
 
 def row_buffers(width: int) -> Row:
-    """Scratch of :func:`_row_geometry`: x', y', predicted disparity, Qz, lands."""
-    held = [np.empty(width, np.float64) for _ in range(4)]
-    return (held[0], held[1], held[2], held[3], np.empty(width, np.bool_))
+    """Scratch of one row: float64 rows, a support's values, int64 flat indices, bool rows.
+
+    A bilinear support's four values are float32: exact for a disparity or a grey level.
+    """
+    return (
+        np.empty((NEAREST + 1, width), np.float64),
+        np.empty((4, width), np.float32),
+        np.empty((2, width), np.int64),
+        np.empty((2, width), np.bool_),
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``u = (x − cx)/f`` of every column, the same IEEE operations as per pixel."""
+    us = np.empty(width, np.float64)
+    for x in range(width):
+        us[x] = (x - geo[1]) / geo[0]
+    return us
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _landing(
+    row: np.ndarray,
+    us: np.ndarray,
+    y: int,
+    rt: np.ndarray,
+    geo: np.ndarray,
+    offset: float,
+    box: tuple[float, float, float, float],
+    shape: tuple[int, int],
+    scratch: Row,
+) -> None:  # pragma: no cover - compiled
+    """:func:`_row_geometry` of one row, then each landing's support corner and nearest pixel.
+
+    Vectorised passes only, so the gathers that follow (:func:`_gather`) are bare loads.
+    """
+    values, _, index, marks = scratch
+    xs, ys, wx, wy = values[XS], values[YS], values[WX], values[WY]
+    _row_geometry(
+        row, us, y, rt, geo, offset, box, (xs, ys, values[PREDICTED], values[DEPTH], marks[LANDS])
+    )
+    height, width = shape
+    corner, near = index[CORNER], index[NEAR]
+    for x in range(row.shape[0]):  # 0 where the point lands nowhere: every gather stays inside
+        x0 = min(int(xs[x]), width - 2)
+        y0 = min(int(ys[x]), height - 2)
+        wx[x] = xs[x] - x0
+        wy[x] = ys[x] - y0
+        corner[x] = y0 * width + x0
+        near[x] = int(ys[x] + 0.5) * width + int(xs[x] + 0.5)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _gather(
+    flat: np.ndarray, corner: np.ndarray, width: int, quad: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """The four values of each bilinear support (``flat``: an image as one row).
+
+    Unsigned indices: numba then adds no wrap-around of negative ones to each load.
+    """
+    one = np.uint64(1)
+    below = np.uint64(width)
+    for x in range(corner.shape[0]):
+        i = np.uint64(corner[x])
+        quad[0, x] = flat[i]
+        quad[1, x] = flat[i + one]
+        quad[2, x] = flat[i + below]
+        quad[3, x] = flat[i + below + one]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _lerp(quad: np.ndarray, wx: np.ndarray, wy: np.ndarray, x: int) -> float:
+    """:func:`_bilinear` of gathered values (the same operations, so the same result)."""
+    a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
+    c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
+    top = a + wx[x] * (b - a)
+    return top + wy[x] * (c + wx[x] * (d - c) - top)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -88,7 +176,7 @@ def motion_splat(
     photometric: float,
     zbuffer: np.ndarray,
     moving: np.ndarray,
-    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    scratch: Row,
 ) -> None:  # pragma: no cover - compiled
     """The z-buffer of ``t + k`` (float32 disparities, largest = nearest) from the points of ``t``.
 
@@ -97,31 +185,58 @@ def motion_splat(
     through which a point it hides would look visible. Points that fail the photometric check
     (``images``: left at ``t`` and ``t + k``, or 0×0) are marked in ``moving`` (written in full)
     and hide nothing: a car that drove away would otherwise hide the road it uncovered.
+
+    Done as one write per point, at its support's corner ``(⌊x'⌋, ⌊y'⌋)``, then a 2×2 maximum
+    filter (:func:`_support_maximum`): the maximum is exact, so this is the same z-buffer at a
+    quarter of the scattered writes.
     """
     height, width = source.shape
     zbuffer[:] = -np.inf
-    moving[:] = False
+    flat = zbuffer.reshape(-1)
     box = (0.0, np.float64(width - 1), 0.0, np.float64(height - 1))
-    xs, ys, predicted, _, lands = scratch
+    values, quad, index, marks = scratch
+    predicted, wx, wy = values[PREDICTED], values[WX], values[WY]
+    corner, lands = index[CORNER], marks[LANDS]
+    us = _columns(width, geo)
     src_image, tgt_image = images
     photo = src_image.shape[0] == height and tgt_image.shape[0] == height
+    tgt_flat = tgt_image.reshape(-1)
     for y in range(height):
-        _row_geometry(source[y], y, rt, geo, offset, box, scratch)
+        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch)
+        flags = moving[y]
+        if photo:
+            _gather(tgt_flat, corner, width, quad)
+            src_row = src_image[y]
+            for x in range(width):  # branch-free: whether a point moved is not predictable
+                seen = _lerp(quad, wx, wy, x)
+                flags[x] = lands[x] & (abs(np.float64(src_row[x]) - seen) > photometric)
+        else:
+            flags[:] = False
         for x in range(width):
-            if not lands[x]:
-                continue
-            value = np.float32(predicted[x])
-            x0 = min(int(xs[x]), width - 2)
-            y0 = min(int(ys[x]), height - 2)
-            if photo:  # branch-free: whether a point moved is not predictable
-                seen = _bilinear(tgt_image, x0, y0, xs[x] - x0, ys[x] - y0)
-                flag = abs(np.float64(src_image[y, x]) - seen) > photometric
-                moving[y, x] = flag
-                value = np.float32(-np.inf) if flag else value
-            zbuffer[y0, x0] = max(zbuffer[y0, x0], value)
-            zbuffer[y0, x0 + 1] = max(zbuffer[y0, x0 + 1], value)
-            zbuffer[y0 + 1, x0] = max(zbuffer[y0 + 1, x0], value)
-            zbuffer[y0 + 1, x0 + 1] = max(zbuffer[y0 + 1, x0 + 1], value)
+            if lands[x] and not flags[x]:
+                i = corner[x]
+                flat[i] = max(flat[i], np.float32(predicted[x]))
+    _support_maximum(zbuffer)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _support_maximum(zbuffer: np.ndarray) -> None:  # pragma: no cover - compiled
+    """In place: each pixel becomes the maximum of itself and its left, upper, upper-left pixel.
+
+    A corner written at ``(x0, y0)`` so reaches ``x0 + 1`` and ``y0 + 1``. Row by row, each
+    row's horizontal maximum kept before it is overwritten; every loop vectorises.
+    """
+    height, width = zbuffer.shape
+    above = np.full(width, -np.inf, np.float32)
+    here = np.empty(width, np.float32)
+    for y in range(height):
+        row = zbuffer[y]
+        here[0] = row[0]
+        for x in range(1, width):
+            here[x] = max(row[x], row[x - 1])
+        for x in range(width):
+            row[x] = max(here[x], above[x])
+        above, here = here, above
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -138,14 +253,15 @@ def motion_classify(
     thresholds: np.ndarray,
     sums: np.ndarray,
     maps: tuple[np.ndarray, np.ndarray, np.ndarray],
-    scratch: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    scratch: Row,
 ) -> None:  # pragma: no cover - compiled
     """Every source pixel's status and residual; adds the sums of its cell (``cells`` < 0: none).
 
     ``source``/``target``: (disparity with NaN where missing, edge mask); ``zbuffer`` and
     ``moving`` from :func:`motion_splat`; ``limits``: (border margin px, occlusion tolerance px).
     ``maps``: the status (int8), disparity residual and depth residual (float32, NaN unless
-    counted) of every pixel, written in full.
+    counted) of every pixel, written in full. Per row: vectorised geometry, bare gathers, one
+    vectorised pass for the masks and residuals, the row's sums.
     """
     src, src_edges = source
     tgt, tgt_edges = target
@@ -154,24 +270,33 @@ def motion_classify(
     fb, doffs = geo[3], geo[4]
     margin, tolerance = limits[0], limits[1]
     box = (margin, np.float64(width - 1) - margin, margin, np.float64(height - 1) - margin)
-    xs, ys, predicted, depth, lands = scratch
+    values, quad, index, marks = scratch
+    predicted, depth, nearest = values[PREDICTED], values[DEPTH], values[NEAREST]
+    wx, wy = values[WX], values[WY]
+    corner, near = index[CORNER], index[NEAR]
+    lands, tgt_edge = marks[LANDS], marks[TARGET_EDGE]
+    us = _columns(width, geo)
+    tgt_flat = tgt.reshape(-1)
+    z_flat = zbuffer.reshape(-1)
+    edges_flat = tgt_edges.reshape(-1)
     for y in range(height):
         row = src[y]
-        _row_geometry(row, y, rt, geo, offset, box, scratch)
+        _landing(row, us, y, rt, geo, offset, box, (height, width), scratch)
+        _gather(tgt_flat, corner, width, quad)
+        for x in range(width):
+            i = near[x]
+            nearest[x] = z_flat[i]
+            tgt_edge[x] = edges_flat[i]
+        edge_row = src_edges[y]
+        moving_row = moving[y]
+        status_row = status_map[y]
+        r_row = r_map[y]
+        rz_row = rz_map[y]
         for x in range(width):  # branch-free: masks are not predictable
-            xp = xs[x]  # 0 where the point lands nowhere: every gather stays inside
-            yp = ys[x]
-            x0 = min(int(xp), width - 2)
-            y0 = min(int(yp), height - 2)
-            wx = xp - x0
-            wy = yp - y0
-            row_near = int(yp + 0.5)
-            column_near = int(xp + 0.5)
-            observed = _bilinear(tgt, x0, y0, wx, wy) - offset
+            observed = _lerp(quad, wx, wy, x) - offset
             value = predicted[x]
-            nearest = np.float64(zbuffer[row_near, column_near])
-            hidden = nearest > np.float64(np.float32(value)) + tolerance
-            edge = src_edges[y, x] | tgt_edges[row_near, column_near]
+            hidden = nearest[x] > np.float64(np.float32(value)) + tolerance
+            edge = edge_row[x] | tgt_edge[x]
             status = (
                 MISSING
                 if not np.float64(row[x]) - offset + doffs > 0.0
@@ -184,16 +309,16 @@ def motion_classify(
                 else EDGE
                 if edge
                 else MOVING
-                if moving[y, x]
+                if moving_row[x]
                 else COUNTED
             )
             counted = status == COUNTED
             r = observed - value if counted else np.nan
             rz = fb / (observed + doffs) - depth[x] if counted else np.nan
-            status_map[y, x] = status
-            r_map[y, x] = r
-            rz_map[y, x] = rz
-        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
+            status_row[x] = status
+            r_row[x] = r
+            rz_row[x] = rz
+        _row_sums(status_row, r_row, rz_row, cells[y], thresholds, sums)
 
 
 MASKED_CELLS = 4
@@ -221,12 +346,8 @@ def _row_sums(
                 _add(sums, cells[x], status[x], r[x], rz[x], thresholds)
         return
     for cell in range(n_cells):
-        n = 0.0
-        by_status = np.zeros(STATUSES, np.float64)
-        for x in range(status.shape[0]):  # status counts: a small scatter
-            inside = cells[x] == cell
-            n += 1.0 if inside else 0.0
-            by_status[status[x]] += 1.0 if inside else 0.0
+        by_status = _status_counts(status, cells, cell)
+        n = by_status.sum()  # each pixel of the cell has one status: whole numbers, exact
         sum_abs = total = sum_sq = sum_abs_z = sum_sq_z = 0.0
         for x in range(status.shape[0]):  # residual terms: vectorises (selects, no branches)
             counted = (cells[x] == cell) & (status[x] == COUNTED)
@@ -252,6 +373,31 @@ def _row_sums(
             for x in range(status.shape[0]):  # NaN (not counted) is never above a threshold
                 bad += 1.0 if (cells[x] == cell) & (abs(np.float64(r[x])) > limit) else 0.0
             totals[COL_BAD + i] += bad
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _status_counts(
+    status: np.ndarray, cells: np.ndarray, cell: int
+) -> np.ndarray:  # pragma: no cover - compiled
+    """How many pixels of ``cell`` have each status: seven counters, compared, no scatter.
+
+    A scatter into seven counters stalls on its own stores (a run of one status adds to one
+    counter); whole-number counts are exact in any order.
+    """
+    c0 = c1 = c2 = c3 = c4 = c5 = c6 = 0
+    for x in range(status.shape[0]):
+        code = np.int64(status[x]) if cells[x] == cell else np.int64(-1)
+        c0 += code == COUNTED
+        c1 += code == MISSING
+        c2 += code == BORDER
+        c3 += code == HIDDEN
+        c4 += code == MISSING_TARGET
+        c5 += code == EDGE
+        c6 += code == MOVING
+    out = np.empty(STATUSES, np.float64)
+    out[COUNTED], out[MISSING], out[BORDER], out[HIDDEN] = c0, c1, c2, c3
+    out[MISSING_TARGET], out[EDGE], out[MOVING] = c4, c5, c6
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -289,134 +435,16 @@ def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> floa
 
 
 @njit(cache=True, nogil=True)
-def fit_samples(
-    source: np.ndarray, edges: np.ndarray, stride: int
-) -> np.ndarray:  # pragma: no cover
-    """The pixels the offset fit may use, as ``(y, x)`` rows (int32, N × 2).
-
-    Every ``stride``-th pixel of every ``stride``-th row with an estimate and no depth edge.
-    """
-    height, width = source.shape
-    out = np.empty(
-        ((height + stride - 1) // stride * ((width + stride - 1) // stride), 2), np.int32
-    )
-    n = 0
-    for y in range(0, height, stride):
-        for x in range(0, width, stride):
-            if source[y, x] > -np.inf and not edges[y, x]:  # NaN: missing
-                out[n, 0] = y
-                out[n, 1] = x
-                n += 1
-    return out[:n]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def offset_residuals(
-    source: np.ndarray,
-    target: tuple[np.ndarray, np.ndarray],
-    images: tuple[np.ndarray, np.ndarray],
-    samples: np.ndarray,
-    rt: np.ndarray,
-    geo: np.ndarray,
-    offset: float,
-    photometric: float,
-    out: tuple[np.ndarray, np.ndarray],
-) -> int:  # pragma: no cover - compiled
-    """Residuals ``r(b)`` and slopes ``dr/db`` of the samples the offset fit uses; how many.
-
-    The ``samples`` (:func:`fit_samples`) that land in the image on a support without a
-    hole or a depth edge of ``target`` (disparity, edges) and pass the photometric check
-    (``images``, or 0×0); no z-buffer (hidden points are outliers the median ignores).
-    ``r(b)`` is the residual with both estimates shifted by ``−b``; ``dr/db`` is analytic (the
-    depth, the landing and the bilinear value all move with ``b``).
-    """
-    height, width = source.shape
-    f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
-    tgt, tgt_edges = target
-    src_image, tgt_image = images
-    residuals, slopes = out
-    photo = src_image.shape[0] == height and tgt_image.shape[0] == height
-    last_x = np.float64(width - 1)
-    last_y = np.float64(height - 1)
-    written = 0
-    for i in range(samples.shape[0]):
-        y = samples[i, 0]
-        x = samples[i, 1]
-        s = np.float64(source[y, x]) - offset + doffs
-        z = fb / s
-        u = (x - cx) / f
-        v = (y - cy) / f
-        ax = rt[0, 0] * u + rt[0, 1] * v + rt[0, 2]
-        ay = rt[1, 0] * u + rt[1, 1] * v + rt[1, 2]
-        az = rt[2, 0] * u + rt[2, 1] * v + rt[2, 2]
-        qx = z * ax + rt[0, 3]
-        qy = z * ay + rt[1, 3]
-        qz = z * az + rt[2, 3]
-        xp = cx + f * qx / qz
-        yp = cy + f * qy / qz
-        if not (s > 0.0 and qz > 0.0 and 0.0 <= xp <= last_x and 0.0 <= yp <= last_y):
-            continue
-        x0 = min(int(xp), width - 2)
-        y0 = min(int(yp), height - 2)
-        wx = xp - x0
-        wy = yp - y0
-        r = _bilinear(tgt, x0, y0, wx, wy) - offset - (fb / qz - doffs)
-        if not abs(r) < np.inf or tgt_edges[int(yp + 0.5), int(xp + 0.5)]:
-            continue
-        if photo and (
-            abs(np.float64(src_image[y, x]) - _bilinear(tgt_image, x0, y0, wx, wy)) > photometric
-        ):
-            continue
-        p00 = np.float64(tgt[y0, x0])
-        p01 = np.float64(tgt[y0, x0 + 1])
-        p10 = np.float64(tgt[y0 + 1, x0])
-        p11 = np.float64(tgt[y0 + 1, x0 + 1])
-        dz = z * z / fb
-        gx = (1.0 - wy) * (p01 - p00) + wy * (p11 - p10)
-        gy = (1.0 - wx) * (p10 - p00) + wx * (p11 - p01)
-        dxp = f * (ax * qz - qx * az) / (qz * qz) * dz
-        dyp = f * (ay * qz - qy * az) / (qz * qz) * dz
-        residuals[written] = r
-        slopes[written] = gx * dxp + gy * dyp + fb * az * dz / (qz * qz) - 1.0
-        written += 1
-    return written
-
-
-@njit(cache=True, nogil=True)
-def l1_step(
-    residuals: np.ndarray, slopes: np.ndarray, floor: float
-) -> tuple[float, float]:  # pragma: no cover - compiled
-    """The step ``Δ`` minimising ``Σ |r + J·Δ|`` over the inliers, and the mean ``|J|``.
-
-    Inliers: ``|r − median| ≤ max(floor, 4 · 1.4826 · MAD)`` (a moving car's residual of
-    tens of px is no evidence about the offset). The step is the weighted median of ``−r/J``
-    with weights ``|J|``: pixels where the offset changes the residual most decide it.
-    Returns ``(0, 0)`` when nothing is left.
-    """
-    n = residuals.shape[0]
-    centre = np.median(residuals)
-    bound = max(floor, 4.0 * 1.4826 * np.median(np.abs(residuals - centre)))
-    steps = np.empty(n, np.float64)
-    weights = np.empty(n, np.float64)
-    kept = 0
-    total = 0.0
-    for i in range(n):
-        weight = abs(slopes[i])
-        if weight > 0.0 and abs(residuals[i] - centre) <= bound:
-            steps[kept] = -residuals[i] / slopes[i]
-            weights[kept] = weight
-            total += weight
-            kept += 1
-    if kept == 0:
-        return 0.0, 0.0
-    order = np.argsort(steps[:kept])
-    half = 0.5 * total
-    running = 0.0
-    for i in range(kept):
-        running += weights[order[i]]
-        if running >= half:
-            return steps[order[i]], total / kept
-    return steps[order[kept - 1]], total / kept
+def positive_disparity(
+    disparity: np.ndarray, out: np.ndarray, valid: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Valid where finite and ``> 0``; ``out`` is the disparity there, NaN elsewhere (one pass)."""
+    flat, flat_out, flat_valid = disparity.reshape(-1), out.reshape(-1), valid.reshape(-1)
+    for i in range(flat.shape[0]):
+        value = flat[i]
+        ok = (value > 0) & (value < np.inf)  # NaN fails both
+        flat_valid[i] = ok
+        flat_out[i] = value if ok else np.float32(np.nan)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -489,14 +517,18 @@ def flicker_spread(
                 for x in range(width):
                     low[x] = min(low[x], np.int32(grey[x]))
                     high[x] = max(high[x], np.int32(grey[x]))
+        for x in range(width):  # float64 only, apart from the selects below: vectorises
+            square[x] = np.sqrt(square[x] / (frames - 1))
+            square_z[x] = np.sqrt(square_z[x] / (frames - 1))
+        mean_row, status_row, r_row, rz_row = mean[y], status_map[y], r_map[y], rz_map[y]
         for x in range(width):
             complete = valid[x] == frames
             moving = np.float64(high[x] - low[x]) > photometric
-            mean[y, x] = np.float32(total[x]) if complete else np.float32(np.nan)
-            status_map[y, x] = MISSING if not complete else (MOVING if moving else COUNTED)
+            mean_row[x] = np.float32(total[x]) if complete else np.float32(np.nan)
+            status_row[x] = MISSING if not complete else (MOVING if moving else COUNTED)
             counted = complete and not moving
-            r_map[y, x] = np.sqrt(square[x] / (frames - 1)) if counted else np.nan
-            rz_map[y, x] = np.sqrt(square_z[x] / (frames - 1)) if counted else np.nan
+            r_row[x] = square[x] if counted else np.nan
+            rz_row[x] = square_z[x] if counted else np.nan
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
