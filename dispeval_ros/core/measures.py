@@ -223,8 +223,23 @@ def _row_recipe(
     return tuple(recipe)
 
 
+class ByCriterion(Mapping[str, Mapping[str, float]]):
+    """A mapping criterion → measure → value over the ``criteria`` it holds, in their order."""
+
+    criteria: tuple[str, ...]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.criteria)
+
+    def __len__(self) -> int:
+        return len(self.criteria)
+
+    def __contains__(self, criterion: object) -> bool:
+        return criterion in self.criteria
+
+
 @dataclass
-class Scores(Mapping[str, Mapping[str, float]]):
+class Scores(ByCriterion):
     """Scores of one method on one frame (or summed over frames), by criterion.
 
     ``scores[criterion][measure]``; ``scores[criterion]["n"]`` is the number of points.
@@ -264,15 +279,6 @@ class Scores(Mapping[str, Mapping[str, float]]):
             values.setdefault("density", float(_FROM_SUMS["density"](row)))
             self._cache[criterion] = values
         return self._cache[criterion]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self.criteria)
-
-    def __len__(self) -> int:
-        return len(self.criteria)
-
-    def __contains__(self, criterion: object) -> bool:
-        return criterion in self.criteria
 
     def to_dict(self) -> dict[str, dict[str, float]]:
         """Plain nested dict (criterion → measure → value), JSON-ready apart from nan.

@@ -15,7 +15,7 @@ import dataclasses
 import functools
 import math
 import threading
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +34,7 @@ from dispeval_ros.core.kernels.temporal import (
 )
 from dispeval_ros.core.measures import (
     DEFAULT_BAD_THRESHOLDS,
+    ByCriterion,
     bad_threshold,
     from_registry,
     thresholds_for,
@@ -133,7 +134,7 @@ def _derivation(
 
 
 @dataclass
-class PairScores(Mapping[str, Mapping[str, float]]):
+class PairScores(ByCriterion):
     """Pair measures of one method on one frame pair (or summed over pairs), by criterion.
 
     ``scores[criterion][measure]``; ``scores[criterion]["n_pair"]`` counts the pixels with GT in
@@ -161,15 +162,6 @@ class PairScores(Mapping[str, Mapping[str, float]]):
                 values[name] = float(_derivation(name, thresholds, self.preset)(row))
             self._cache[criterion] = values
         return self._cache[criterion]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self.criteria)
-
-    def __len__(self) -> int:
-        return len(self.criteria)
-
-    def __contains__(self, criterion: object) -> bool:
-        return criterion in self.criteria
 
     def to_dict(self) -> dict[str, dict[str, float]]:
         """Plain nested dict (criterion → measure → value); ``n_pair`` an integer."""
