@@ -2,8 +2,8 @@
 
 Frames are written to the same results database as ``dispeval bag`` in units of ``every_n``
 frames as they come (a crash loses at most one unit), and A* Groups with the front reduction
-are recomputed after every unit; :meth:`SummarizerCore.finish` writes the last frames, the CSV
-and ``summary.json``. Nothing accumulated is lost on an orderly shutdown.
+are recomputed after every unit; :meth:`SummarizerCore.finish` writes the last frames, the CSV,
+``summary.json`` and ``timing.json``. Nothing accumulated is lost on an orderly shutdown.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Pro
 from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import SUMMARY_JSON, TIMING_JSON, ResultsStore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
 from dispeval_ros.summary import RunSummary, summarize
 
@@ -214,7 +214,10 @@ class SummarizerCore:
         return self.sequence
 
     def finish(self) -> RunSummary | None:
-        """Write everything accumulated, the CSV and ``summary.json``; close the database."""
+        """Write what is accumulated, the CSV, ``summary.json``, ``timing.json``; close the store.
+
+        ``timing.json`` (ros2_benchmark's keys) only where latency was recorded, as a bag run.
+        """
         if self._finished:
             return self.summary
         self._finished = True
@@ -227,7 +230,10 @@ class SummarizerCore:
                 )
                 self.summary = summary
                 document = {**summary.to_dict(), "provenance": self.provenance}
-                write_json(self.config.out / "summary.json", document)
+                write_json(self.config.out / SUMMARY_JSON, document)
+                timing = summary.benchmark_document()
+                if timing:  # latency recorded: ros2_benchmark's keys, as a bag run writes them
+                    write_json(self.config.out / TIMING_JSON, timing)
         finally:
             self.store.close()
         return self.summary

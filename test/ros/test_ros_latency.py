@@ -9,6 +9,7 @@ years off). The measured transit is printed (``pytest -s``) and written in the R
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
@@ -37,7 +38,7 @@ from ros_support import Ros, ros_import
 from sample_feed import bag_reference, sample_bag, sample_config
 
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import TIMING_JSON, ResultsStore
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.stream.vectors import DELAY_KEY, arrival_of
 
@@ -86,7 +87,8 @@ def final_delivery(scores: list[Any]) -> Any:
 def test_a_replayed_bag_has_the_delays_of_dispeval_bag(ros: Ros, tmp_path: Path) -> None:
     """The node's replay passes each message's log time as its arrival: per frame and method
     the same estimate stamp and arrival as ``dispeval bag`` stores (on the wall clock they
-    would be the replay's receipt times, decades after the recording's)."""
+    would be the replay's receipt times, long after the recording's), and the summarizer's
+    ``timing.json`` holds the same numbers as the bag run's."""
     bag = sample_bag()
     config = sample_config(bag)
     bag_reference(bag, tmp_path / "bag")
@@ -98,11 +100,13 @@ def test_a_replayed_bag_has_the_delays_of_dispeval_bag(ros: Ros, tmp_path: Path)
                 for t in ts}  # fmt: skip
     assert len({a - s for s, a in expected.values()}) > 1, "the sample bag records delays"
 
+    out = tmp_path / "live"
+    summarizer = ros.summarizer(output_dir=str(out), drain_timeout=2.0)
     scores = ros.collect(
         diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.SCORES_QOS
     )
     node = evaluator_of(
-        ros, config, bag=str(bag), bag_rate=0.0, bag_wait_subscribers=1, bag_exit=False
+        ros, config, bag=str(bag), bag_rate=0.0, bag_wait_subscribers=2, bag_exit=False
     )
     thread = node._replay_thread
     assert ros.spin_until(lambda: not thread.is_alive())
@@ -112,6 +116,16 @@ def test_a_replayed_bag_has_the_delays_of_dispeval_bag(ros: Ros, tmp_path: Path)
     published = node_delays(scores, list(config.methods))
     assert len(published) == sum(c.matched for c in final_delivery(scores).counts.values()) > 0
     assert published == {key: expected[key] for key in published}
+
+    ros.destroy(summarizer)  # drains, stores, writes the files
+    assert by_method(out / TIMING_JSON) == by_method(tmp_path / "bag" / TIMING_JSON)
+
+
+def by_method(path: Path) -> dict[str, Any]:
+    """A one-sequence ``timing.json``'s sections by method (the sequence names differ)."""
+    document = json.loads(path.read_text())
+    assert len({name.rpartition("/")[0] for name in document}) == 1, document.keys()
+    return {name.rpartition("/")[2]: keys for name, keys in document.items()}
 
 
 def _feed(
