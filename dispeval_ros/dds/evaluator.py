@@ -226,7 +226,10 @@ class DdsEvaluator:
         ]
         for method, message in result.problems:
             topic = self.config.methods[method] if method else self.config.gt_topic
-            records.append(problem_status(method, topic, message))
+            sent = arrival = None  # a failed estimate's latency goes with its problem
+            if method is not None:
+                sent, arrival = result.sent.get(method), result.arrivals.get(method)
+            records.append(problem_status(method, topic, message, sent, arrival))
         return records
 
     def publish(self, result: FrameResult) -> None:

@@ -114,9 +114,9 @@ class DdsSummarizer:
                 problem = read_problem(record)
                 if problem is not None:
                     problems.append(problem)
-                    continue
-                scores[record.name] = scores_from_status(record.values)
-                arrival = arrival_of(record.values)
+                else:
+                    scores[record.name] = scores_from_status(record.values)
+                arrival = arrival_of(record.values)  # a failed estimate's too
                 if arrival is not None:
                     arrivals[record.name] = arrival
             except InputError:
@@ -156,6 +156,8 @@ class DdsSummarizer:
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)
+            elif arrivals:  # every estimate failed: their arrivals only
+                self.core.add(stamp, scores, arrivals)
             self._lock.notify_all()
         if summary is not None:
             self.publish_groups(summary)

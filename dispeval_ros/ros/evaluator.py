@@ -357,7 +357,10 @@ class EvaluatorNode(Node):
         for method, problem in result.problems:
             self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
             topic = self.config.methods[method] if method is not None else self.config.gt_topic
-            records.append(problem_status(method, topic, problem))
+            sent = arrival = None  # a failed estimate's latency goes with its problem
+            if method is not None:
+                sent, arrival = result.sent.get(method), result.arrivals.get(method)
+            records.append(problem_status(method, topic, problem, sent, arrival))
         if records:
             with self._publish_lock:
                 index = self.published + 1

@@ -120,11 +120,12 @@ class SummarizerNode(Node):
                 delivery = read_delivery(record)
                 if delivery is not None:
                     deliveries.append(delivery)
-                elif problem is not None:
-                    problems.append((stamp, *problem))
                 else:
-                    frame[record.name] = scores_from_status(record.values)
-                    arrival = arrival_of(record.values)
+                    if problem is not None:
+                        problems.append((stamp, *problem))
+                    else:
+                        frame[record.name] = scores_from_status(record.values)
+                    arrival = arrival_of(record.values)  # a failed estimate's too
                     if arrival is not None:
                         arrivals[record.name] = arrival
             except DispevalError as error:
@@ -139,7 +140,7 @@ class SummarizerNode(Node):
             for delivery in deliveries:
                 self._book.ledger.add(delivery, frame)
             self._book.problems.extend(problems)
-            if not frame:
+            if not frame and not arrivals:
                 return
             try:
                 summary = self._core.add(stamp, frame, arrivals)

@@ -154,15 +154,18 @@ class SummarizerCore:
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
-        ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency).
+        ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency), also
+        of an estimate that could not be scored: it was delivered all the same, and ``dispeval
+        bag`` keeps its arrival too. Without scores only the arrivals are recorded.
         """
-        for method, method_scores in scores.items():
-            self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
         self._timing.extend(
             FrameTiming(self.sequence, int(stamp), method, sent, arrival)
             for method, (sent, arrival) in (arrivals or {}).items()
-            if method in scores
         )
+        if not scores:
+            return None
+        for method, method_scores in scores.items():
+            self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
         self.totals.add(self.sequence, int(stamp), scores)
         self.frames += 1
         if len({f.stamp for f in self._pending}) >= self.config.every_n:
@@ -170,7 +173,7 @@ class SummarizerCore:
         return None
 
     def _write_unit(self) -> RunSummary | None:
-        if not self._pending:
+        if not self._pending and not self._timing:
             return self.summary
         counts: dict[str, MatchCounts] = {}
         for frame in self._pending:

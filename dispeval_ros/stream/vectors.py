@@ -181,17 +181,28 @@ def scores_status(
     values.append(("_relative", "1" if scores.relative else "0"))
     values.append(("_thresholds", " ".join(format_number(t) for t in scores.thresholds)))
     values.append(("_overlapping", " ".join(scores.overlapping)))
-    if estimate_stamp is not None:
-        values.append((ESTIMATE_STAMP_KEY, str(int(estimate_stamp))))
-        if arrival is not None:
-            delay = (int(arrival) - int(estimate_stamp)) / 1e6
-            values.append((ARRIVAL_KEY, str(int(arrival))))
-            values.append((DELAY_KEY, format_number(delay)))
-            found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
-            if found > level:
-                level, worst = found, f"delay {delay:.4g} ms"
+    delay = _timing_values(values, estimate_stamp, arrival)
+    if delay is not None:
+        found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
+        if found > level:
+            level, worst = found, f"delay {delay:.4g} ms"
     message = {OK: "ok", WARN: f"warning: {worst}", ERROR: f"error: {worst}"}[level]
     return StatusRecord(method, topic, level, message, tuple(values))
+
+
+def _timing_values(
+    values: list[tuple[str, str]], estimate_stamp: int | None, arrival: int | None
+) -> float | None:
+    """Append the estimate stamp, arrival and delay keys; returns the delay (ms) if known."""
+    if estimate_stamp is None:
+        return None
+    values.append((ESTIMATE_STAMP_KEY, str(int(estimate_stamp))))
+    if arrival is None:
+        return None
+    delay = (int(arrival) - int(estimate_stamp)) / 1e6
+    values.append((ARRIVAL_KEY, str(int(arrival))))
+    values.append((DELAY_KEY, format_number(delay)))
+    return delay
 
 
 def arrival_of(values: Sequence[tuple[str, str]]) -> tuple[int, int] | None:
@@ -274,14 +285,22 @@ def score_vector(scores: Scores, labels: Sequence[str]) -> list[float]:
     return vector
 
 
-def problem_status(method: str | None, topic: str, message: str) -> StatusRecord:
-    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it)."""
+def problem_status(
+    method: str | None,
+    topic: str,
+    message: str,
+    estimate_stamp: int | None = None,
+    arrival: int | None = None,
+) -> StatusRecord:
+    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it).
+
+    A method's estimate that failed was still delivered: with ``arrival`` (and
+    ``estimate_stamp``) its latency follows the problem, as ``dispeval bag`` keeps it.
+    """
+    values = [(PROBLEM_KEY, message)]
+    _timing_values(values, estimate_stamp, arrival)
     return StatusRecord(
-        method if method is not None else GROUND_TRUTH,
-        topic,
-        ERROR,
-        message,
-        ((PROBLEM_KEY, message),),
+        method if method is not None else GROUND_TRUTH, topic, ERROR, message, tuple(values)
     )
 
 

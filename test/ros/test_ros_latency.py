@@ -25,9 +25,11 @@ from ros_nodes_support import (
     estimate,
     evaluator_node,
     evaluator_of,
+    frame_messages,
     gt_map,
     image_msg,
     make_publishers,
+    publishers,
     rclpy,
     scores_once_matched,
     sensor_msgs,
@@ -37,7 +39,7 @@ from ros_nodes_support import (
 from ros_support import Ros, ros_import
 from sample_feed import bag_reference, sample_bag, sample_config
 
-from dispeval_ros.io.messages import stamp_ns
+from dispeval_ros.io.messages import image_from_msg, stamp_ns
 from dispeval_ros.io.store import TIMING_JSON, ResultsStore
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
 from dispeval_ros.stream.vectors import DELAY_KEY, arrival_of
@@ -253,3 +255,45 @@ def test_sim_time_receipts_are_the_node_s_clock(ros: Ros) -> None:
     assert [stamp_ns(array.header) for array in scores] == sorted(s for s, _ in found.values())
     assert node.counts()["good"].matched == 2
     assert node.counts()["good"].unmatched == 0
+
+
+def test_failed_estimates_keep_their_arrivals(ros: Ros, tmp_path: Path) -> None:
+    """An estimate that could not be scored was delivered: its arrival goes with its problem
+    status and the summarizer stores it (as ``dispeval bag`` does), also on a frame where no
+    method could be scored."""
+    topics = Topics("latency_failed")
+    out = tmp_path / "live"
+    summarizer = ros.summarizer(output_dir=str(out), drain_timeout=2.0)
+    node = ros.evaluator(methods=[f"good:{topics.good}", f"bad:{topics.bad}"], gt_topic=topics.gt)
+    pubs = publishers(ros, topics)
+    scores = scores_once_matched(ros, node, pubs, [topics.gt, topics.good, topics.bad])
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() == 2)
+    frames = [frame_messages(topics, 0, bad_shape=True), frame_messages(topics, 1, bad_shape=True)]
+    gt, (good_topic, good), bad = frames[1]
+    half = disparity_msg(image_from_msg(good.image).array[: good.image.height // 2], 0)
+    half.header = good.header  # frame 1: both estimates fail
+    frames[1] = [gt, (good_topic, half), bad]
+    frames.append(frame_messages(topics, 2))
+    for k, messages in enumerate(frames):
+        for topic, msg in messages:
+            pubs[topic].publish(msg)
+        assert ros.spin_until(lambda k=k: len(scores) == k + 1)
+    node.finish()
+    assert ros.spin_until(lambda: final_delivery(scores) is not None)
+    ros.destroy(summarizer)
+
+    published = node_delays(scores, ["good", "bad"])
+    stamps = [stamp_ns(array.header) for array in scores if statuses(array)]
+    assert published.keys() == {(s, m) for s in stamps for m in ("good", "bad")}
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        stored = {
+            (t.estimate_stamp, m): (t.estimate_stamp, t.arrival)
+            for m, ts in (store.timing(sequence) or {}).items()
+            for t in ts
+        }
+        assert stored == published
+        counts = store.match_counts(sequence)
+        assert (counts["good"].failed, counts["bad"].failed) == (1, 2)
+        assert sorted(store.stamps(sequence)) == [stamps[0], stamps[2]]
+    assert set(by_method(out / TIMING_JSON)) == {"good", "bad"}
