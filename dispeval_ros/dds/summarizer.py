@@ -41,7 +41,7 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 SUMMARY_SHARE = 0.1
@@ -116,9 +116,7 @@ class DdsSummarizer:
                     problems.append(problem)
                 else:
                     scores[record.name] = scores_from_status(record.values)
-                arrival = arrival_of(record.values)  # a failed estimate's too
-                if arrival is not None:
-                    arrivals[record.name] = arrival
+                arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
         self.add(stamp, scores, problems, deliveries, arrivals)

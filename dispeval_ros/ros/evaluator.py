@@ -80,7 +80,7 @@ from dispeval_ros.stream.topics import (
 )
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
-    problem_status,
+    problem_statuses,
     score_vector,
     scores_status,
     vector_labels,
@@ -354,13 +354,9 @@ class EvaluatorNode(Node):
             )
             for method, scores in result.scores.items()
         ]
-        for method, problem in result.problems:
+        for _, problem in result.problems:
             self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
-            topic = self.config.methods[method] if method is not None else self.config.gt_topic
-            sent = arrival = None  # a failed estimate's latency goes with its problem
-            if method is not None:
-                sent, arrival = result.sent.get(method), result.arrivals.get(method)
-            records.append(problem_status(method, topic, problem, sent, arrival))
+        records.extend(problem_statuses(result, self.config.methods, self.config.gt_topic))
         if records:
             with self._publish_lock:
                 index = self.published + 1

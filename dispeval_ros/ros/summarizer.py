@@ -41,7 +41,7 @@ from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_o
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
@@ -125,9 +125,7 @@ class SummarizerNode(Node):
                         problems.append((stamp, *problem))
                     else:
                         frame[record.name] = scores_from_status(record.values)
-                    arrival = arrival_of(record.values)  # a failed estimate's too
-                    if arrival is not None:
-                        arrivals[record.name] = arrival
+                    arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
                     f"ignoring status '{record.name}' on {SCORES_TOPIC}: {error}",

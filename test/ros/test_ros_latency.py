@@ -42,7 +42,7 @@ from sample_feed import bag_reference, sample_bag, sample_config
 from dispeval_ros.io.messages import image_from_msg, stamp_ns
 from dispeval_ros.io.store import TIMING_JSON, ResultsStore
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
-from dispeval_ros.stream.vectors import DELAY_KEY, arrival_of
+from dispeval_ros.stream.vectors import DELAY_KEY, arrivals_of
 
 rosgraph_msgs = ros_import("rosgraph_msgs.msg")
 
@@ -59,22 +59,21 @@ machine. A receipt on a wrong clock is off by far more."""
 
 
 def node_delays(scores: list[Any], methods: list[str]) -> dict[tuple[int, str], tuple[int, int]]:
-    """(estimate stamp, method) → (estimate stamp, arrival) of every published method status.
-
-    The ``_delay_ms`` key is checked against them on the way.
-    """
+    """(estimate stamp, method) → (estimate stamp, arrival) in every published status (those of
+    estimates not scored included); each method status has them, and its ``_delay_ms``."""
     found: dict[tuple[int, str], tuple[int, int]] = {}
     for array in scores:
         for name, status in statuses(array).items():
-            if name not in methods:
-                continue
-            values = convert.status_values(status)
-            timing = arrival_of(values)
-            assert timing is not None, f"{name}: no arrival in the status"
-            sent, arrival = timing
-            delay_ms = float(dict(values)[DELAY_KEY])
-            assert abs(delay_ms - (arrival - sent) / MS) <= 1e-4 * max(1.0, abs(delay_ms))
-            found[sent, name] = timing
+            record = convert.status_record(status)
+            arrivals = arrivals_of(record)
+            if name in methods:
+                assert name in arrivals, f"{name}: no arrival in the status"
+                sent, arrival = arrivals[name]
+                delay_ms = float(dict(record.values)[DELAY_KEY])
+                assert abs(delay_ms - (arrival - sent) / MS) <= 1e-4 * max(1.0, abs(delay_ms))
+            for method, timing in arrivals.items():
+                assert method in methods
+                found[timing[0], method] = timing
     return found
 
 
@@ -259,8 +258,8 @@ def test_sim_time_receipts_are_the_node_s_clock(ros: Ros) -> None:
 
 def test_failed_estimates_keep_their_arrivals(ros: Ros, tmp_path: Path) -> None:
     """An estimate that could not be scored was delivered: its arrival goes with its problem
-    status and the summarizer stores it (as ``dispeval bag`` does), also on a frame where no
-    method could be scored."""
+    status (or the ground truth's) and the summarizer stores it, as ``dispeval bag`` does: on
+    a frame where one method fails, where both do, and where the ground truth does."""
     topics = Topics("latency_failed")
     out = tmp_path / "live"
     summarizer = ros.summarizer(output_dir=str(out), drain_timeout=2.0)
@@ -274,6 +273,9 @@ def test_failed_estimates_keep_their_arrivals(ros: Ros, tmp_path: Path) -> None:
     half.header = good.header  # frame 1: both estimates fail
     frames[1] = [gt, (good_topic, half), bad]
     frames.append(frame_messages(topics, 2))
+    (gt_topic, gt), *estimates = frame_messages(topics, 3)  # frame 3: its ground truth fails
+    colour = np.zeros((gt.height, gt.width, 3), np.uint8)
+    frames.append([(gt_topic, image_msg(colour, stamp_ns(gt.header), "rgb8")), *estimates])
     for k, messages in enumerate(frames):
         for topic, msg in messages:
             pubs[topic].publish(msg)
@@ -294,6 +296,7 @@ def test_failed_estimates_keep_their_arrivals(ros: Ros, tmp_path: Path) -> None:
         }
         assert stored == published
         counts = store.match_counts(sequence)
-        assert (counts["good"].failed, counts["bad"].failed) == (1, 2)
+        assert (counts["good"].failed, counts["bad"].failed) == (2, 3)
+        assert [p.method for p in store.problems() if p.stamp == stamps[3]] == [None]
         assert sorted(store.stamps(sequence)) == [stamps[0], stamps[2]]
     assert set(by_method(out / TIMING_JSON)) == {"good", "bad"}
