@@ -228,13 +228,19 @@ class EvaluatorNode(Node):
         """The receipt time on sim time (``use_sim_time``: the node's clock, i.e. /clock).
 
         None on system time: the live evaluator's monotonic clock shifted to the wall clock.
-        Raises before the first /clock: a delay against time 0 would be meaningless.
+        Raises before the first /clock for a message that is joined (a delay or wait against
+        time 0 would be meaningless); CameraInfo and static transforms need no receipt.
         """
         clock = self.get_clock()
         if not isinstance(clock, ROSClock) or not clock.ros_time_is_active:
             return None
         now = int(clock.now().nanoseconds)
-        if now <= 0:
+        config = self.config
+        if now <= 0 and topic not in (
+            config.left_info_topic,
+            config.right_info_topic,
+            config.tf_topic,
+        ):
             raise InputError(
                 f"use_sim_time is set but no /clock was received yet: the message on {topic} "
                 "has no receipt time to measure its delay against (ignored)"
