@@ -51,7 +51,7 @@ from dispeval_ros.stream.topics import SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     StatusRecord,
-    problem_status,
+    problem_statuses,
     score_vector,
     scores_status,
     vector_labels,
@@ -224,9 +224,7 @@ class DdsEvaluator:
             )
             for method, scores in result.scores.items()
         ]
-        for method, message in result.problems:
-            topic = self.config.methods[method] if method else self.config.gt_topic
-            records.append(problem_status(method, topic, message))
+        records.extend(problem_statuses(result, self.config.methods, self.config.gt_topic))
         return records
 
     def publish(self, result: FrameResult) -> None:

@@ -41,7 +41,7 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 SUMMARY_SHARE = 0.1
@@ -114,11 +114,9 @@ class DdsSummarizer:
                 problem = read_problem(record)
                 if problem is not None:
                     problems.append(problem)
-                    continue
-                scores[record.name] = scores_from_status(record.values)
-                arrival = arrival_of(record.values)
-                if arrival is not None:
-                    arrivals[record.name] = arrival
+                else:
+                    scores[record.name] = scores_from_status(record.values)
+                arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
         self.add(stamp, scores, problems, deliveries, arrivals)
@@ -156,6 +154,8 @@ class DdsSummarizer:
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)
+            elif arrivals:  # every estimate failed: their arrivals only
+                self.core.add(stamp, scores, arrivals)
             self._lock.notify_all()
         if summary is not None:
             self.publish_groups(summary)

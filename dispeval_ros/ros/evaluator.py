@@ -16,7 +16,11 @@ frame's results:
   (rgb8).
 
 With the ``bag`` parameter a thread replays the recording into the same evaluator instead of
-subscribing. On SIGINT / SIGTERM (or the end of a replay) every frame already joined is scored
+subscribing, each message arriving at its log time (delays as ``dispeval bag`` measures them).
+Live, a message arrives when received: on the wall clock, or on the node's clock with
+``use_sim_time`` (messages before the first /clock are refused, with a warning).
+
+On SIGINT / SIGTERM (or the end of a replay) every frame already joined is scored
 and published before the node exits, and the per-method counts are logged.
 """
 
@@ -33,6 +37,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import ROSClock
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import (
@@ -75,7 +80,7 @@ from dispeval_ros.stream.topics import (
 )
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
-    problem_status,
+    problem_statuses,
     score_vector,
     scores_status,
     vector_labels,
@@ -210,16 +215,47 @@ class EvaluatorNode(Node):
 
     def _subscriber(self, topic: str) -> Callable[[Any], None]:
         def callback(msg: Any) -> None:
-            self._push(topic, msg)
+            try:
+                received = self._receipt(topic)
+            except InputError as error:
+                self.get_logger().warning(str(error), throttle_duration_sec=LOG_PERIOD)
+                return
+            self._push(topic, msg, received)
 
         return callback
 
-    def _push(self, topic: str, msg: Any) -> None:
-        """Hand one message to the live evaluator (never blocks on scoring)."""
+    def _receipt(self, topic: str) -> int | None:
+        """The receipt time on sim time (``use_sim_time``: the node's clock, i.e. /clock).
+
+        None on system time: the live evaluator's monotonic clock shifted to the wall clock.
+        Raises before the first /clock for a message that is joined (a delay or wait against
+        time 0 would be meaningless); CameraInfo and static transforms need no receipt.
+        """
+        clock = self.get_clock()
+        if not isinstance(clock, ROSClock) or not clock.ros_time_is_active:
+            return None
+        now = int(clock.now().nanoseconds)
+        config = self.config
+        if now <= 0 and topic not in (
+            config.left_info_topic,
+            config.right_info_topic,
+            config.tf_topic,
+        ):
+            raise InputError(
+                f"use_sim_time is set but no /clock was received yet: the message on {topic} "
+                "has no receipt time to measure its delay against (ignored)"
+            )
+        return now
+
+    def _push(self, topic: str, msg: Any, received: int | None = None) -> None:
+        """Hand one message to the live evaluator (never blocks on scoring).
+
+        ``received`` (ns, the stamps' clock): its arrival (a bag's log time, sim-time receipt).
+        """
         try:
             if topic == self.config.gt_topic:
                 self._gt_frame_id = str(msg.header.frame_id)
-            self._live.push(topic, msg)
+            self._live.push(topic, msg, received)
         except DispevalError as error:
             self.get_logger().warning(
                 f"ignoring a message on {topic}: {error}", throttle_duration_sec=LOG_PERIOD
@@ -235,12 +271,12 @@ class EvaluatorNode(Node):
             offset = 0
             passes = 0
             while not self._stop.is_set():
-                first, last, pushed = self._replay_once(options.bag, offset)
+                span, pushed = self._replay_once(options.bag, offset)
                 passes += 1
-                if not options.bag_loop or pushed == 0 or first is None or last is None:
+                if not options.bag_loop or pushed == 0 or span is None:
                     break
-                # The next pass continues in stamp time after this one.
-                offset += last - first + self.config.tolerance_ns + self.config.lateness_ns + 1
+                # The next pass continues in stamp and log time after this one.
+                offset += span + self.config.tolerance_ns + self.config.lateness_ns + 1
             self.get_logger().info(f"replayed {options.bag} ({passes} pass(es))")
         except DispevalError as error:
             self.get_logger().error(f"cannot replay {options.bag}: {error}")
@@ -267,27 +303,35 @@ class EvaluatorNode(Node):
                 return False
         return not self._stop.is_set()
 
-    def _replay_once(self, bag: Path, offset: int) -> tuple[int | None, int | None, int]:
-        """One pass over the bag; returns its first and last header stamps and the count."""
-        span: list[int] = []
+    def _replay_once(self, bag: Path, offset: int) -> tuple[int | None, int]:
+        """One pass over the bag, stamps and log times moved by ``offset`` ns.
+
+        Each message arrives at its log time (as in ``dispeval bag``, so the delays are the
+        recording's). Returns the pass's span (the longer of its stamps' and log times'; None
+        if no message had a stamp) and the count.
+        """
+        stamps: list[int] = []
+        logs: list[int] = []
         as_fast_as_possible = self.options.bag_rate is None
 
-        def push(topic: str, msg: Any) -> None:
+        def push(topic: str, msg: Any, log_time: int) -> None:
             if topic == self.config.tf_topic:  # static transforms: no header, no stamp shift
-                self._push(topic, msg)
+                self._push(topic, msg, log_time + offset)
                 return
-            stamp = stamp_ns(msg.header)
-            if not span:
-                span.extend((stamp, stamp))
-            span[0], span[1] = min(span[0], stamp), max(span[1], stamp)
-            self._push(topic, _Shifted(msg, offset) if offset else msg)
+            for seen, value in ((stamps, stamp_ns(msg.header)), (logs, log_time)):
+                if not seen:
+                    seen.extend((value, value))
+                seen[0], seen[1] = min(seen[0], value), max(seen[1], value)
+            self._push(topic, _Shifted(msg, offset) if offset else msg, log_time + offset)
             if as_fast_as_possible:
                 self._live.wait_idle()  # lossless: never more than one frame ahead of scoring
 
         pushed = replay(
             bag, list(self.config.topics), push, rate=self.options.bag_rate, stop=self._stop
         )
-        return (span[0], span[1], pushed) if span else (None, None, pushed)
+        if not stamps:
+            return None, pushed
+        return max(stamps[1] - stamps[0], logs[1] - logs[0]), pushed
 
     # -- output (the scoring thread) --------------------------------------------------------
 
@@ -316,10 +360,9 @@ class EvaluatorNode(Node):
             )
             for method, scores in result.scores.items()
         ]
-        for method, problem in result.problems:
+        for _, problem in result.problems:
             self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
-            topic = self.config.methods[method] if method is not None else self.config.gt_topic
-            records.append(problem_status(method, topic, problem))
+        records.extend(problem_statuses(result, self.config.methods, self.config.gt_topic))
         if records:
             with self._publish_lock:
                 index = self.published + 1

@@ -41,7 +41,7 @@ from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_o
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrival_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
 from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
@@ -120,13 +120,12 @@ class SummarizerNode(Node):
                 delivery = read_delivery(record)
                 if delivery is not None:
                     deliveries.append(delivery)
-                elif problem is not None:
-                    problems.append((stamp, *problem))
                 else:
-                    frame[record.name] = scores_from_status(record.values)
-                    arrival = arrival_of(record.values)
-                    if arrival is not None:
-                        arrivals[record.name] = arrival
+                    if problem is not None:
+                        problems.append((stamp, *problem))
+                    else:
+                        frame[record.name] = scores_from_status(record.values)
+                    arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
                     f"ignoring status '{record.name}' on {SCORES_TOPIC}: {error}",
@@ -139,7 +138,7 @@ class SummarizerNode(Node):
             for delivery in deliveries:
                 self._book.ledger.add(delivery, frame)
             self._book.problems.extend(problems)
-            if not frame:
+            if not frame and not arrivals:
                 return
             try:
                 summary = self._core.add(stamp, frame, arrivals)

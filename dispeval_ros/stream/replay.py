@@ -1,4 +1,8 @@
-"""Feed a recorded bag to a live front end, at the recorded rate or as fast as possible."""
+"""Feed a recorded bag to a live front end, at the recorded rate or as fast as possible.
+
+Each message goes with its log time, the arrival ``dispeval bag`` uses: a replayed bag's delays
+(arrival − header stamp) are the recording's, whatever the replay rate or the wall clock.
+"""
 
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ from dispeval_ros.io.bags import BagSource
 def replay(
     path: Path,
     topics: Sequence[str],
-    push: Callable[[str, Any], None],
+    push: Callable[[str, Any, int], None],
     *,
     rate: float | None = 1.0,
     stop: threading.Event | None = None,
@@ -22,6 +26,9 @@ def replay(
     sleep: Callable[[float], None] = time.sleep,
 ) -> int:
     """Push every message of ``topics`` in log-time order; returns how many were pushed.
+
+    ``push(topic, msg, log_time)``: the log time (ns) is the message's arrival (``received``
+    of :meth:`~dispeval_ros.stream.runner.LiveEvaluator.push`).
 
     ``rate`` 1.0 keeps the recorded timing, 2.0 plays twice as fast, None as fast as possible.
     ``stop`` ends the replay early (checked between messages).
@@ -44,6 +51,6 @@ def replay(
                             break
                     else:
                         sleep(delay)
-            push(topic, msg)
+            push(topic, msg, log_time)
             pushed += 1
     return pushed

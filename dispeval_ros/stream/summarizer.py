@@ -2,8 +2,8 @@
 
 Frames are written to the same results database as ``dispeval bag`` in units of ``every_n``
 frames as they come (a crash loses at most one unit), and A* Groups with the front reduction
-are recomputed after every unit; :meth:`SummarizerCore.finish` writes the last frames, the CSV
-and ``summary.json``. Nothing accumulated is lost on an orderly shutdown.
+are recomputed after every unit; :meth:`SummarizerCore.finish` writes the last frames, the CSV,
+``summary.json`` and ``timing.json``. Nothing accumulated is lost on an orderly shutdown.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Pro
 from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
-from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.io.store import SUMMARY_JSON, TIMING_JSON, ResultsStore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
 from dispeval_ros.summary import RunSummary, summarize
 
@@ -154,15 +154,18 @@ class SummarizerCore:
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
-        ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency).
+        ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency), also
+        of an estimate that could not be scored: it was delivered all the same, and ``dispeval
+        bag`` keeps its arrival too. Without scores only the arrivals are recorded.
         """
-        for method, method_scores in scores.items():
-            self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
         self._timing.extend(
             FrameTiming(self.sequence, int(stamp), method, sent, arrival)
             for method, (sent, arrival) in (arrivals or {}).items()
-            if method in scores
         )
+        if not scores:
+            return None
+        for method, method_scores in scores.items():
+            self._pending.append(FrameScores(self.sequence, int(stamp), method, method_scores))
         self.totals.add(self.sequence, int(stamp), scores)
         self.frames += 1
         if len({f.stamp for f in self._pending}) >= self.config.every_n:
@@ -170,7 +173,7 @@ class SummarizerCore:
         return None
 
     def _write_unit(self) -> RunSummary | None:
-        if not self._pending:
+        if not self._pending and not self._timing:
             return self.summary
         counts: dict[str, MatchCounts] = {}
         for frame in self._pending:
@@ -214,7 +217,10 @@ class SummarizerCore:
         return self.sequence
 
     def finish(self) -> RunSummary | None:
-        """Write everything accumulated, the CSV and ``summary.json``; close the database."""
+        """Write what is accumulated, the CSV, ``summary.json``, ``timing.json``; close the store.
+
+        ``timing.json`` (ros2_benchmark's keys) only where latency was recorded, as a bag run.
+        """
         if self._finished:
             return self.summary
         self._finished = True
@@ -227,7 +233,10 @@ class SummarizerCore:
                 )
                 self.summary = summary
                 document = {**summary.to_dict(), "provenance": self.provenance}
-                write_json(self.config.out / "summary.json", document)
+                write_json(self.config.out / SUMMARY_JSON, document)
+                timing = summary.benchmark_document()
+                if timing:  # latency recorded: ros2_benchmark's keys, as a bag run writes them
+                    write_json(self.config.out / TIMING_JSON, timing)
         finally:
             self.store.close()
         return self.summary

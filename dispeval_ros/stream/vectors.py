@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,6 +27,9 @@ from dispeval_ros.core.measures import (
     parse_measures,
 )
 from dispeval_ros.errors import ConfigurationError, InputError
+
+if TYPE_CHECKING:
+    from dispeval_ros.stream.core import FrameResult
 
 OK, WARN, ERROR = 0, 1, 2
 SUMS_KEY = "sums"
@@ -181,17 +185,45 @@ def scores_status(
     values.append(("_relative", "1" if scores.relative else "0"))
     values.append(("_thresholds", " ".join(format_number(t) for t in scores.thresholds)))
     values.append(("_overlapping", " ".join(scores.overlapping)))
-    if estimate_stamp is not None:
-        values.append((ESTIMATE_STAMP_KEY, str(int(estimate_stamp))))
-        if arrival is not None:
-            delay = (int(arrival) - int(estimate_stamp)) / 1e6
-            values.append((ARRIVAL_KEY, str(int(arrival))))
-            values.append((DELAY_KEY, format_number(delay)))
-            found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
-            if found > level:
-                level, worst = found, f"delay {delay:.4g} ms"
+    delay = _timing_values(values, estimate_stamp, arrival)
+    if delay is not None:
+        found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
+        if found > level:
+            level, worst = found, f"delay {delay:.4g} ms"
     message = {OK: "ok", WARN: f"warning: {worst}", ERROR: f"error: {worst}"}[level]
     return StatusRecord(method, topic, level, message, tuple(values))
+
+
+def _timing_values(
+    values: list[tuple[str, str]], estimate_stamp: int | None, arrival: int | None
+) -> float | None:
+    """Append the estimate stamp, arrival and delay keys; returns the delay (ms) if known."""
+    if estimate_stamp is None:
+        return None
+    values.append((ESTIMATE_STAMP_KEY, str(int(estimate_stamp))))
+    if arrival is None:
+        return None
+    delay = (int(arrival) - int(estimate_stamp)) / 1e6
+    values.append((ARRIVAL_KEY, str(int(arrival))))
+    values.append((DELAY_KEY, format_number(delay)))
+    return delay
+
+
+def arrivals_of(record: StatusRecord) -> dict[str, tuple[int, int]]:
+    """Method → (estimate stamp, arrival) in a method or problem status (none: empty)."""
+    if record.name != GROUND_TRUTH:
+        found = arrival_of(record.values)
+        return {} if found is None else {record.name: found}
+    table = dict(record.values)
+    arrivals = {}
+    for key, sent in table.items():
+        name, _, leaf = key.rpartition("/")
+        arrival = table.get(f"{name}/{ARRIVAL_KEY}")
+        if leaf == ESTIMATE_STAMP_KEY and arrival is not None:
+            found = arrival_of(((ESTIMATE_STAMP_KEY, sent), (ARRIVAL_KEY, arrival)))
+            if found is not None:
+                arrivals[name] = found
+    return arrivals
 
 
 def arrival_of(values: Sequence[tuple[str, str]]) -> tuple[int, int] | None:
@@ -274,15 +306,53 @@ def score_vector(scores: Scores, labels: Sequence[str]) -> list[float]:
     return vector
 
 
-def problem_status(method: str | None, topic: str, message: str) -> StatusRecord:
-    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it)."""
+def problem_status(
+    method: str | None,
+    topic: str,
+    message: str,
+    estimate_stamp: int | None = None,
+    arrival: int | None = None,
+    unscored: Mapping[str, tuple[int, int]] | None = None,
+) -> StatusRecord:
+    """The ERROR status of a frame that could not be scored (no scores, so summaries skip it).
+
+    A failed estimate was still delivered: its latency follows the problem, as ``dispeval
+    bag`` keeps it: a method's ``arrival`` (and ``estimate_stamp``); on a ground-truth
+    problem, ``unscored`` (method → (estimate stamp, arrival)) as ``METHOD/_arrival`` keys.
+    """
+    values = [(PROBLEM_KEY, message)]
+    _timing_values(values, estimate_stamp, arrival)
+    for name, (sent, received) in (unscored or {}).items():
+        values.append((f"{name}/{ESTIMATE_STAMP_KEY}", str(int(sent))))
+        values.append((f"{name}/{ARRIVAL_KEY}", str(int(received))))
     return StatusRecord(
-        method if method is not None else GROUND_TRUTH,
-        topic,
-        ERROR,
-        message,
-        ((PROBLEM_KEY, message),),
+        method if method is not None else GROUND_TRUTH, topic, ERROR, message, tuple(values)
     )
+
+
+def problem_statuses(
+    result: FrameResult, topics: Mapping[str, str], gt_topic: str
+) -> list[StatusRecord]:
+    """The ERROR statuses of a frame's problems, as every front end publishes them.
+
+    Each estimate delivered but not scored keeps its latency: on its own problem, else on
+    the ground truth's.
+    """
+    failed = {method for method, _ in result.problems if method is not None}
+    unscored = {
+        method: (result.sent[method], arrival)
+        for method, arrival in result.arrivals.items()
+        if method not in result.scores and method not in failed and method in result.sent
+    }
+    records = []
+    for method, message in result.problems:
+        if method is None:
+            records.append(problem_status(None, gt_topic, message, unscored=unscored))
+            unscored = {}  # once per frame
+        else:
+            sent, arrival = result.sent.get(method), result.arrivals.get(method)
+            records.append(problem_status(method, topics[method], message, sent, arrival))
+    return records
 
 
 def read_problem(record: StatusRecord) -> tuple[str | None, str] | None:

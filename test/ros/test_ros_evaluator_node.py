@@ -34,6 +34,7 @@ from dispeval_ros.stream.vectors import (
     ARRIVAL_KEY,
     DELAY_KEY,
     ERROR,
+    ESTIMATE_STAMP_KEY,
     OK,
     PROBLEM_KEY,
     AlarmThresholds,
@@ -164,8 +165,9 @@ def test_frame_problems_are_error_statuses(ros: Ros) -> None:
     problem = got["bad"]
     assert convert.status_level(problem) == ERROR
     assert problem.hardware_id == topics.bad
-    ((key, text),) = convert.status_values(problem)
+    (key, text), *timing = convert.status_values(problem)
     assert key == PROBLEM_KEY
+    assert [name for name, _ in timing] == [ESTIMATE_STAMP_KEY, ARRIVAL_KEY, DELAY_KEY]
     assert text == problem.message
     assert topics.bad in text
     node.finish()

@@ -195,7 +195,7 @@ def test_replay_keeps_the_recorded_rate(sample: Path) -> None:
     count = replay(
         sample,
         [GT_TOPIC],
-        lambda t, m: pushed.append(t),
+        lambda t, m, r: pushed.append(t),
         rate=2.0,
         clock=lambda: now[0],
         sleep=sleep,
