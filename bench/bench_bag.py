@@ -61,6 +61,26 @@ STAGE_FRAMES = 20
 """Frames held in memory to time the stages after reading (each holds ~7.5 MB of messages)."""
 
 
+def write_drive(bag: Path, frames: int, storage: str) -> Path:
+    """The bench's bag: a synthetic 1242×375 drive with the three methods (as make-bag)."""
+    methods = [m for m in default_methods(1242) if m.name in METHODS]
+    started = time.perf_counter()
+    write_bag(
+        bag, synthetic_frames(frames, 1242, 375, 10.0, seed=5), storage=storage, methods=methods
+    )
+    print(
+        f"wrote {frames} frames of 1242×375 ({storage}) "
+        f"in {time.perf_counter() - started:.1f} s: {bag}"
+    )
+    return bag
+
+
+def warm_up(bag: Path, config: CoreConfig, root: Path) -> None:
+    """Compile (or load) the kernels: one pipeline run before anything is timed."""
+    with ResultsStore.create(root / "warm-up", {}) as store:
+        evaluate_bags([bag], config, store)
+
+
 def best(rounds: int, run: Callable[[], Any]) -> float:
     """The shortest of ``rounds`` runs, in seconds."""
     seconds = math.inf
@@ -337,23 +357,9 @@ def main() -> None:
     args = parser.parse_args()
     keep_frames_on_the_heap()  # as the pipeline does
     root = Path(tempfile.mkdtemp(prefix="dispeval-bench-"))
-    bag = args.bag or root / "drive"
-    if args.bag is None:
-        methods = [m for m in default_methods(1242) if m.name in METHODS]
-        started = time.perf_counter()
-        write_bag(
-            bag,
-            synthetic_frames(args.frames, 1242, 375, 10.0, seed=5),
-            storage=args.storage,
-            methods=methods,
-        )
-        print(
-            f"wrote {args.frames} frames of 1242×375 ({args.storage}) "
-            f"in {time.perf_counter() - started:.1f} s: {bag}"
-        )
+    bag = args.bag or write_drive(root / "drive", args.frames, args.storage)
     config = bag_config(METHODS)
-    with ResultsStore.create(root / "warm-up", {}) as store:  # compile (or load) the kernels first
-        evaluate_bags([bag], config, store)
+    warm_up(bag, config, root)
     load = " ".join(f"{value:.2f}" for value in os.getloadavg())
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(f"{dispeval_ros.__file__}: {cores} cores, load average {load}")

@@ -28,6 +28,7 @@ from dispeval_ros.core.temporal import (
     DEFAULT_PRESET,
     PRESETS,
     PairScores,
+    PreparedEstimate,
     TemporalScorer,
     frame_weighted_mean,
     pair_unit,
@@ -336,14 +337,15 @@ def score(
         index: [m for m, runs in temporal.runs.items() for run in runs if index in run[:-1]]
         for index in range(len(names) - 1)
     }
-    cache: dict[str, tuple[int, np.ndarray]] = {}
+    cache: dict[str, tuple[int, PreparedEstimate]] = {}
 
-    def estimate(method: str, index: int) -> np.ndarray:
+    def estimate(method: str, index: int) -> PreparedEstimate:
+        """Frame ``index``'s estimate, prepared once for both pairs it is in."""
         if method in cache and cache[method][0] == index:
             return cache[method][1]
         array = read_disparity(temporal.files[method][index], scale=est_scale)
-        cache[method] = (index, array)
-        return array
+        cache[method] = (index, scorer.prepare(array))
+        return cache[method][1]
 
     for index, methods in wanted.items():
         if not methods:

@@ -76,6 +76,7 @@ __getattr__, __dir__ = lazy_exports(
         "dispeval_ros.core.temporal": (
             "PairReference",
             "PairScores",
+            "PreparedEstimate",
             "TemporalScorer",
         ),
         "dispeval_ros.core.transforms": (
@@ -135,7 +136,12 @@ if TYPE_CHECKING:
         get_protocol,
         summarize_frames,
     )
-    from dispeval_ros.core.temporal import PairReference, PairScores, TemporalScorer
+    from dispeval_ros.core.temporal import (
+        PairReference,
+        PairScores,
+        PreparedEstimate,
+        TemporalScorer,
+    )
     from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
@@ -162,6 +168,7 @@ __all__ = [
     "PairScores",
     "Partition",
     "PinholeCamera",
+    "PreparedEstimate",
     "Protocol",
     "Reduction",
     "Reference",

@@ -21,8 +21,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import criteria as crit
-from dispeval_ros.core import registry
-from dispeval_ros.core.evaluator import Evaluator, Reference, as_disparity
+from dispeval_ros.core import kernels, registry
+from dispeval_ros.core.evaluator import (
+    POLICIES,
+    Evaluator,
+    Reference,
+    as_disparity,
+    estimate_coding,
+)
 from dispeval_ros.core.kernels.temporal import (
     PAIR_BAD,
     PAIR_COUNT,
@@ -236,15 +242,37 @@ class PairReference:
         return self.reference.shape
 
 
+@dataclass(frozen=True)
+class PreparedEstimate:
+    """One frame's estimate with the missing policy applied once, for both pairs it is in.
+
+    Frame t is the later frame of pair (t−1, t) and the earlier of (t, t+1); each pair gathers
+    it in its own frame's partition order, but the costly part (KITTI interpolation under
+    ``interpolate``) depends on the estimate alone. ``source``: the coded map (validity in the
+    sign) under ``interpolate``, else the estimate itself (coded while gathered). Made by
+    :meth:`TemporalScorer.prepare`; the estimate must not change while it is in use.
+    """
+
+    source: np.ndarray
+    shape: tuple[int, int]
+    coding: tuple[float, float, float, float]
+    """``(lo, hi, base, shift)`` of :func:`~dispeval_ros.core.evaluator.estimate_coding`."""
+    missing: str
+    """The missing policy it was prepared under."""
+
+
 class TemporalScorer:
     """Scores consecutive frames' estimates with the pair measures (docs/method.md).
 
     The missing-estimate policy, δ and criteria are those of ``evaluator``, applied to both
-    frames exactly as it applies them to one.
+    frames exactly as it applies them to one. Over a sequence, :meth:`prepare` each frame's
+    estimate once and pass the prepared frames to :meth:`score` (the same sums, half the
+    interpolation).
 
     >>> scorer = TemporalScorer(Evaluator(criteria=("all", "depth")))
     >>> pair = scorer.pair(scorer.evaluator.reference(gt_t), gt_t1)  # doctest: +SKIP
     >>> scorer.score(pair, est_t, est_t1)["all"]["tepe"]  # doctest: +SKIP
+    >>> scorer.score(pair, scorer.prepare(est_t), scorer.prepare(est_t1))  # doctest: +SKIP
     """
 
     def __init__(
@@ -276,17 +304,31 @@ class TemporalScorer:
         else:
             gt = as_disparity(gt_next, "the next frame's ground truth")
             cells = np.empty(0, dtype=np.int32)
-        _same_size(gt, reference, "the next frame's ground truth")
+        _same_size(gt.shape, reference, "the next frame's ground truth")
         order = reference.partition.order
         sorted_next = np.empty(order.shape, dtype=np.float32)
         gather_next_ground_truth(gt.reshape(-1), cells, order, sorted_next)
         return PairReference(reference, sorted_next)
 
+    def prepare(
+        self,
+        est: np.ndarray,
+        *,
+        est_range: tuple[float, float] | None = None,
+        est_offset: float = 0.0,
+    ) -> PreparedEstimate:
+        """One frame's estimate ready for :meth:`score` as frame t of one pair and t+1 of the next.
+
+        Validity and coding as :meth:`Evaluator.score`; under ``interpolate`` the interpolated
+        map is kept (its own array), so each frame is interpolated once, not once per pair.
+        """
+        return self._prepared(as_disparity(est, "the estimate"), est_range, est_offset, True)
+
     def score(
         self,
         pair: PairReference,
-        est: np.ndarray,
-        est_next: np.ndarray,
+        est: np.ndarray | PreparedEstimate,
+        est_next: np.ndarray | PreparedEstimate,
         *,
         est_range: tuple[float, float] | None = None,
         est_offset: float = 0.0,
@@ -295,21 +337,38 @@ class TemporalScorer:
     ) -> PairScores:
         """Score one method's estimates of frames t and t+1: criterion → pair measure → value.
 
-        Validity and coding of each estimate as :meth:`Evaluator.score` (``next_range`` and
-        ``next_offset`` default to frame t's).
+        Either estimate a map or one made by :meth:`prepare` (the same sums). Validity and
+        coding of a map as :meth:`Evaluator.score` (``next_range`` and ``next_offset`` default to
+        frame t's); a prepared estimate carries its own.
         """
         reference = pair.reference
-        estimates = []
-        for array, what in ((est, "the estimate"), (est_next, "the next frame's estimate")):
-            estimates.append(_same_size(as_disparity(array, what), reference, what))
         if next_range is None:
             next_range = est_range
         if next_offset is None:
             next_offset = est_offset
         values, values_next = self._buffers(reference.partition.order.shape)
-        gather = self.evaluator.gather
-        shift = gather(reference, estimates[0], values, est_range, est_offset)
-        shift_next = gather(reference, estimates[1], values_next, next_range, next_offset)
+        shifts = []
+        for given, out, coding, what in (
+            (est, values, (est_range, est_offset), "the estimate"),
+            (est_next, values_next, (next_range, next_offset), "the next frame's estimate"),
+        ):
+            if isinstance(given, PreparedEstimate):
+                if given.missing != self.evaluator.missing:
+                    raise ConfigurationError(
+                        f"{what} was prepared under the '{given.missing}' missing policy, "
+                        f"this scorer's is '{self.evaluator.missing}'"
+                    )
+                prepared = given
+            else:  # gathered before the next is prepared: the evaluator's buffer can be shared
+                array = as_disparity(given, what)
+                prepared = self._prepared(array, coding[0], coding[1], False)
+            _same_size(prepared.shape, reference, what)
+            lo, hi, base, shift = prepared.coding
+            coded = prepared.missing == "interpolate"
+            order = reference.partition.order
+            kernels.gather_estimate(prepared.source, order, lo, hi, base, shift, coded, out)
+            shifts.append(shift)
+        shift, shift_next = shifts
         partition = reference.partition
         cell_sums = np.zeros((partition.offsets.shape[0] - 1, PAIR_COUNT), dtype=np.float64)
         accumulate_pairs(
@@ -334,6 +393,25 @@ class TemporalScorer:
             preset=self.preset,
         )
 
+    def _prepared(
+        self,
+        estimate: np.ndarray,
+        est_range: tuple[float, float] | None,
+        est_offset: float,
+        own: bool,
+    ) -> PreparedEstimate:
+        """As :meth:`prepare`; ``own=False`` keeps the evaluator's reused buffer (no copy)."""
+        coding = estimate_coding(est_range, est_offset)
+        missing = self.evaluator.missing
+        source = estimate
+        if missing == "interpolate" and own:  # written once into its own map (not copied)
+            source = np.empty(estimate.shape, dtype=np.float32)
+            kernels.normalise_estimate(estimate, *coding, POLICIES[missing], source)
+        elif missing == "interpolate":
+            source = self.evaluator.normalise(estimate, est_range, est_offset)
+        shape = (int(estimate.shape[0]), int(estimate.shape[1]))
+        return PreparedEstimate(source.reshape(-1), shape, coding, missing)
+
     def _buffers(self, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Per-thread scratch arrays for both gathered estimates, reallocated on a new size.
 
@@ -346,10 +424,9 @@ class TemporalScorer:
         return buffers
 
 
-def _same_size(array: np.ndarray, reference: Reference, what: str) -> np.ndarray:
-    if array.shape != reference.shape:
+def _same_size(shape: tuple[int, ...], reference: Reference, what: str) -> None:
+    if shape != reference.shape:
         raise ShapeMismatchError(
-            f"{what} is {crit.size_text(array.shape)} but the ground truth is "
+            f"{what} is {crit.size_text(shape)} but the ground truth is "
             f"{crit.size_text(reference.shape)}"
         )
-    return array

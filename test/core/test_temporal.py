@@ -356,6 +356,29 @@ def test_disparity_image_coding_applies_to_both_frames(drive) -> None:
         assert shifted[name] == pytest.approx(want[name], rel=1e-5)
 
 
+@pytest.mark.parametrize("policy", POLICIES)
+def test_prepared_estimates_give_the_same_sums(drive, policy: str) -> None:
+    """Each frame prepared once (all before any pair is scored, so none may share a buffer)
+    and used in both its pairs: the sums of each pair bit for bit those of the maps."""
+    evaluator = Evaluator(criteria=CRITERIA, missing=policy)
+    scorer = TemporalScorer(evaluator, measures=MEASURES)
+    coding = {"est_range": (0, 200), "est_offset": 0.5}  # OpenCV's −1 holes: missing
+    for method in ("bm_fast", "sgbm"):
+        maps = [est[method] + np.float32(0.5) for _, est in drive]
+        prepared = [scorer.prepare(m, **coding) for m in maps]
+        for t, ((gt, _), (gt_next, _)) in enumerate(itertools.pairwise(drive)):
+            pair = scorer.pair(evaluator.reference(gt), gt_next)
+            plain = scorer.score(pair, maps[t], maps[t + 1], **coding)
+            ready = scorer.score(pair, prepared[t], prepared[t + 1])
+            mixed = scorer.score(pair, prepared[t], maps[t + 1], **coding)
+            assert plain.sums.tobytes() == ready.sums.tobytes() == mixed.sums.tobytes()
+            assert plain.to_dict() == ready.to_dict()
+    other = TemporalScorer(Evaluator(criteria=CRITERIA, missing="ignore"))
+    if policy != "ignore":
+        with pytest.raises(ConfigurationError, match=f"prepared under the '{policy}'"):
+            other.score(other.pair(evaluator.reference(drive[0][0]), drive[1][0]), *prepared[:2])
+
+
 def test_bad_input_is_one_clear_error(drive) -> None:
     (gt, est), (gt_next, _) = drive[0], drive[1]
     evaluator = Evaluator(criteria=("all",))
