@@ -50,6 +50,8 @@ def measure_recipe(name: str, thresholds: np.ndarray) -> dict[str, Any]:
         "higher": measure.direction == registry.HIGHER,
         "unit": measure_unit(name),
     }
+    if measure_unit(name, relative=True) != recipe["unit"]:  # SZE without a camera
+        recipe["relative_unit"] = measure_unit(name, relative=True)
     num = _field(measure.num)
     if measure.name == "bad_X":
         hits = np.flatnonzero(np.asarray(thresholds)[1:] == bad_threshold(name))

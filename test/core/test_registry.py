@@ -170,3 +170,17 @@ def test_script_parts_are_the_asset_files() -> None:
     script = html.report_script()
     assert script.startswith("/* dispeval report")
     assert script.rstrip().endswith("})();")
+
+
+def test_the_report_reads_units_from_the_registry_not_its_own_words() -> None:
+    """The page's unit words come from the recipes (``measure_unit``), the relative SZE too."""
+    from dispeval_ros.report.recipes import measure_recipe
+
+    thresholds = np.array([1.0])
+    sze = measure_recipe("sze", thresholds)
+    assert sze["unit"] == measures.measure_unit("sze")
+    assert sze["relative_unit"] == measures.measure_unit("sze", relative=True)
+    assert "relative_unit" not in measure_recipe("bmp", thresholds)  # no camera changes nothing
+    script = html.report_script()
+    assert "recipe.relative_unit" in script
+    assert not re.search(r"return '[^']*relative[^']*'", script)  # no unit word of its own

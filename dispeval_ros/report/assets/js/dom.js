@@ -57,10 +57,11 @@
     return '+' + seconds(ns - first) + ' s (' + seconds(ns) + ' s)';
   }
 
-  /* The unit of a measure over the chosen methods (SZE without a camera is relative). */
+  /* The unit of a measure over the chosen methods (SZE without a camera is relative): both
+     words come from the recipe (measure_unit in Python), never spelled here. */
   function unitOf(recipe, methodIdx) {
-    if (recipe.name.indexOf('sze') === 0 &&
-        methodIdx.some(function (m) { return D.raw.relative[m]; })) return 'relative, no camera';
+    if (recipe.relative_unit &&
+        methodIdx.some(function (m) { return D.raw.relative[m]; })) return recipe.relative_unit;
     return recipe.unit || '';
   }
 
