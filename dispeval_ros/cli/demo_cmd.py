@@ -71,7 +71,6 @@ def run(args: argparse.Namespace) -> int:
 def replay_sample(args: argparse.Namespace) -> int:
     """The offline pipeline on the sample bag: what ``dispeval bag`` does on a recording."""
     from dispeval_ros.io.bags import BagSource
-    from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.make_bag import (
         GT_TOPIC,
@@ -80,10 +79,9 @@ def replay_sample(args: argparse.Namespace) -> int:
         RIGHT_IMAGE,
         RIGHT_INFO,
     )
-    from dispeval_ros.offline.records import record_bag_provenance
+    from dispeval_ros.offline.records import record_bag_provenance, write_run_files
     from dispeval_ros.offline.sample import find_sample_bag, make_sample_bag
     from dispeval_ros.stream.core import CoreConfig
-    from dispeval_ros.summary import summarize
 
     started = time.perf_counter()
     out = args.out or Path(tempfile.mkdtemp(prefix="dispeval-demo-"))
@@ -115,10 +113,10 @@ def replay_sample(args: argparse.Namespace) -> int:
     progress = Progress("dispeval demo: dense GT", enabled=not args.json)
     with ResultsStore.create(out, record) as store:
         _evaluate_sample(bag, config, store, progress)
-        rows = store.export_csv(out / "frames.csv")
-        summary = summarize(store)
-        problems = store.problems()
         provenance = record_bag_provenance(store, [bag], record, config)
+        files = write_run_files(store, out, provenance)  # frames.csv, summary.json as `bag`
+        rows, summary = files.rows, files.summary
+        problems = store.problems()
         # -- the interactive report of these results (as `dispeval report OUT --bag BAG`)
         from dispeval_ros.report.data import build_report_data, error_thumbnails
         from dispeval_ros.report.html import write_report
@@ -127,7 +125,6 @@ def replay_sample(args: argparse.Namespace) -> int:
         thumbnails = error_thumbnails(store, [bag], config=config)
         write_report(build_report_data(store, title="dispeval demo", thumbnails=thumbnails), report)
         # -- end of the report
-    write_json(out / "summary.json", {**summary.to_dict(), "provenance": provenance})
     robot = robot_mode(
         bag, methods, out / "robot", Progress("dispeval demo: robot mode (LiDAR GT)", not args.json)
     )

@@ -2,7 +2,7 @@
 
 The provenance of a stream run (version, configuration and its hash, stream digests), and
 :func:`write_run_files`, the one writer of a results folder's ``frames.csv`` and
-``summary.json`` (``bag``, ``merge`` and ``eval --out`` leave the same files), and
+``summary.json`` (``bag``, ``merge``, ``eval --out`` and ``demo`` leave the same files), and
 :func:`write_scored_folder`, the results folder of frames scored in one go (``eval --out``).
 """
 
