@@ -13,6 +13,7 @@ import math
 import re
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -227,6 +228,7 @@ class ByCriterion(Mapping[str, Mapping[str, float]]):
     """A mapping criterion → measure → value over the ``criteria`` it holds, in their order."""
 
     criteria: tuple[str, ...]
+    thresholds: np.ndarray
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.criteria)
@@ -236,6 +238,20 @@ class ByCriterion(Mapping[str, Mapping[str, float]]):
 
     def __contains__(self, criterion: object) -> bool:
         return criterion in self.criteria
+
+
+_Combinable = TypeVar("_Combinable", bound=ByCriterion)
+
+
+def first_of_combinable(parts: Sequence[_Combinable], what: str) -> _Combinable:
+    """The first of ``parts`` once all share its criteria and thresholds (else one line)."""
+    if not parts:
+        raise ConfigurationError(f"no {what} to combine")
+    first = parts[0]
+    for part in parts[1:]:
+        if part.criteria != first.criteria or not np.array_equal(part.thresholds, first.thresholds):
+            raise ConfigurationError(f"cannot combine {what} of different criteria or thresholds")
+    return first
 
 
 @dataclass
@@ -306,16 +322,8 @@ class Scores(ByCriterion):
     @classmethod
     def combine(cls, parts: Sequence[Scores]) -> Scores:
         """Scores of several frames together: sums of sums (quantiles are not summable: nan)."""
-        if not parts:
-            raise ConfigurationError("no scores to combine")
-        first = parts[0]
+        first = first_of_combinable(parts, "scores")
         for part in parts[1:]:
-            if part.criteria != first.criteria or not np.array_equal(
-                part.thresholds, first.thresholds
-            ):
-                raise ConfigurationError(
-                    "cannot combine scores of different criteria or thresholds"
-                )
             if part.policy != first.policy:
                 raise ConfigurationError(
                     f"cannot combine scores of the '{first.policy}' and '{part.policy}' missing policies"

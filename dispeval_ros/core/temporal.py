@@ -42,6 +42,7 @@ from dispeval_ros.core.measures import (
     DEFAULT_BAD_THRESHOLDS,
     ByCriterion,
     bad_threshold,
+    first_of_combinable,
     from_registry,
     thresholds_for,
 )
@@ -179,16 +180,8 @@ class PairScores(ByCriterion):
     @classmethod
     def combine(cls, parts: Sequence[PairScores]) -> PairScores:
         """Scores of several frame pairs together: sums of sums."""
-        if not parts:
-            raise ConfigurationError("no pair scores to combine")
-        first = parts[0]
+        first = first_of_combinable(parts, "pair scores")
         for part in parts[1:]:
-            if part.criteria != first.criteria or not np.array_equal(
-                part.thresholds, first.thresholds
-            ):
-                raise ConfigurationError(
-                    "cannot combine pair scores of different criteria or thresholds"
-                )
             if (part.policy, part.preset) != (first.policy, first.preset):
                 raise ConfigurationError(
                     "cannot combine pair scores of different missing policies or presets"
