@@ -85,13 +85,7 @@
     const rowHeight = cs.methods.length > 40 ? 16 : 26;
     const width = Math.max(480, (canvas.parentNode && canvas.parentNode.clientWidth) || 900);
     const height = top + bottom + Math.max(1, cs.methods.length) * rowHeight;
-    const ratio = window.devicePixelRatio || 1;
-    canvas.width = Math.round(width * ratio);
-    canvas.height = Math.round(height * ratio);
-    canvas.style.width = width + 'px';
-    canvas.style.height = height + 'px';
-    const ctx = canvas.getContext('2d');
-    ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+    const ctx = scaledContext(canvas, width, height);
     ctx.clearRect(0, 0, width, height);
     const plotWidth = width - labelWidth - right;
     const n = cs.frames.length;

@@ -57,6 +57,19 @@
     return '+' + seconds(ns - first) + ' s (' + seconds(ns) + ' s)';
   }
 
+  /* A canvas of width × height CSS pixels drawn at the screen's pixel density: its 2-D
+     context, scaled so that drawing is in CSS pixels. */
+  function scaledContext(canvas, width, height) {
+    const ratio = window.devicePixelRatio || 1;
+    canvas.width = Math.round(width * ratio);
+    canvas.height = Math.round(height * ratio);
+    canvas.style.width = width + 'px';
+    canvas.style.height = height + 'px';
+    const ctx = canvas.getContext('2d');
+    ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+    return ctx;
+  }
+
   /* The unit of a measure over the chosen methods (SZE without a camera is relative): both
      words come from the recipe (measure_unit in Python), never spelled here. */
   function unitOf(recipe, methodIdx) {

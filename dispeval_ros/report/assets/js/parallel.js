@@ -39,13 +39,7 @@
     const height = top + plotHeight + bottom;
     const plotWidth = width - left - right;
     const canvas = el('canvas', { id: 'parallel-canvas' });
-    const ratio = window.devicePixelRatio || 1;
-    canvas.width = Math.round(width * ratio);
-    canvas.height = Math.round(height * ratio);
-    canvas.style.width = width + 'px';
-    canvas.style.height = height + 'px';
-    const ctx = canvas.getContext('2d');
-    ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+    const ctx = scaledContext(canvas, width, height);
     const xOf = function (k) { return left + (m <= 1 ? plotWidth / 2 : (k / (m - 1)) * plotWidth); };
     const yOf = function (t) { return top + (1 - t) * plotHeight; };
     ctx.font = '11px system-ui, sans-serif';
