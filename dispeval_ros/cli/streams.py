@@ -14,6 +14,7 @@ from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.stream.config import FieldNames, core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
+from dispeval_ros.stream.pairs import PAIR_GAP_RULE
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
@@ -100,6 +101,7 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
         help=f"{LATENESS_RULE} (ms, default {lateness_ms:g})",
     )
     common.add_evaluation_options(parser)
+    add_temporal_options(parser.add_argument_group("temporal"))
     run = parser.add_argument_group("run")
     common.add_objective_options(run)
     run.add_argument(
@@ -111,6 +113,21 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     return run
 
 
+def add_temporal_options(group: argparse._ArgumentGroup) -> None:
+    """``--temporal [PRESET]`` (the option of ``eval``) and ``--pair-gap MS``."""
+    from dispeval_ros.cli import temporal_eval
+
+    temporal_eval.add_options(group, "over each sequence's consecutive ground-truth frames")
+    gap_ms = core_default("pair_gap_ns") / _NS_PER_MS
+    group.add_argument(
+        "--pair-gap",
+        type=float,
+        default=gap_ms,
+        metavar="MS",
+        help=f"with --temporal: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
+    )
+
+
 _NAMES = {
     "methods": "--method",
     "right_views": "--right-view",
@@ -119,6 +136,8 @@ _NAMES = {
     "right_info_topic": "--camera-info RIGHT",
     "left_image_topic": "--left-image",
     "right_image_topic": "--right-image",
+    "temporal": "--temporal",
+    "pair_gap_ns": "--pair-gap",
 }
 """How the options name :class:`CoreConfig`'s fields in its errors (``gt_topic``: see below)."""
 
@@ -196,6 +215,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         mu=evaluator.mu,
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
+        temporal=args.temporal,
+        pair_gap_ns=round(non_negative_ms(args.pair_gap, "--pair-gap") * _NS_PER_MS),
         names=names,
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)

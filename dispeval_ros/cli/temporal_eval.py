@@ -40,8 +40,14 @@ Estimates = Sequence[tuple[str, Path]]
 """A frame's estimates: method and file."""
 
 
-def add_options(parser: argparse.ArgumentParser) -> None:
-    """``--temporal [PRESET]`` (off by default: nothing changes without it)."""
+def add_options(
+    parser: argparse._ActionsContainer, scope: str = "with --scene of consecutive frames"
+) -> None:
+    """``--temporal [PRESET]`` (off by default: nothing changes without it).
+
+    ``scope``: where the pairs come from, as the command's help says it (``eval`` and the
+    stream commands share the option and its wording).
+    """
     parser.add_argument(
         "--temporal",
         nargs="?",
@@ -49,7 +55,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         choices=tuple(PRESETS),
         default=None,
         metavar="PRESET",
-        help="with --scene of consecutive frames: also score each method's frame-to-frame "
+        help=f"{scope}: also score each method's frame-to-frame "
         "consistency (tepe, tepe_r, tepe_bad_X) over its consecutive frame pairs, normalised "
         f"as preset {' or '.join(PRESETS)} (default {DEFAULT_PRESET}; docs/method.md)",
     )

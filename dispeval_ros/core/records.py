@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from dispeval_ros.core.measures import Scores
+    from dispeval_ros.core.temporal import PairScores
 
-__all__ = ["FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+__all__ = ["FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,21 @@ class FrameTiming:
     def delay(self) -> int:
         """Arrival minus the estimate's header stamp (ns): how late the map came."""
         return self.arrival - self.estimate_stamp
+
+
+@dataclass(frozen=True)
+class FramePair:
+    """One method's pair measures of two consecutive GT frames (stamps in nanoseconds).
+
+    ``stamp``: the later frame's (the pair belongs to the unit that keeps it); ``previous``:
+    the earlier frame's.
+    """
+
+    sequence: str
+    stamp: int
+    method: str
+    previous: int
+    scores: PairScores
 
 
 @dataclass(frozen=True)

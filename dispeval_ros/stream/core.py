@@ -18,16 +18,14 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.core import Camera, Partition, Reference, Scores
-from dispeval_ros.core.gtfree import (
-    ImagePair,
-    joined,
-)
+from dispeval_ros.core.gtfree import ImagePair, joined
 from dispeval_ros.core.projection import (
     CloudFilter,
     CloudProjection,
     project_cloud,
     rectified_projection,
 )
+from dispeval_ros.core.temporal import PairScores, PreparedEstimate
 from dispeval_ros.core.transforms import TransformTree, rigid_matrix
 from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.grey import stereo_grey
@@ -56,6 +54,7 @@ from dispeval_ros.stream.config import (
     CoreConfig,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
+from dispeval_ros.stream.pairs import PairInput
 
 __all__ = [  # the configuration's names stay importable from here (stream.config defines them)
     "CAMERA_INFO_TYPE",
@@ -93,6 +92,12 @@ class FrameResult:
     join's arrival clock: a bag's log time, the receipt time live)."""
     sent: dict[str, int] = field(default_factory=dict)
     """Per method in :attr:`arrivals`: its estimate's header stamp (ns)."""
+    pairs: dict[str, PairScores] = field(default_factory=dict)
+    """With ``temporal``, after :meth:`EvaluationCore.pair`: per method, the pair ending here
+    (its earlier frame's stamp: :attr:`pair_previous`)."""
+    pair_previous: int | None = None
+    pair_input: PairInput | None = None  # for the pair stage, dropped once it ran
+    prepared: dict[str, PreparedEstimate] = field(default_factory=dict, repr=False)
 
     def delays(self) -> dict[str, int]:
         """Per method: arrival minus its estimate's header stamp (ns)."""
@@ -130,6 +135,8 @@ class EvaluationCore:
         GIL); None scores them one after the other. The results are the same."""
         self.evaluator = config.evaluator()
         self.gt_free = config.ground_truth_free()
+        self.pairs = config.pair_stage()
+        """The pair stage (``temporal``): fed in the join's order by :meth:`pair`."""
         auxiliary = config.auxiliary()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
             [*config.methods, *auxiliary],
@@ -287,6 +294,21 @@ class EvaluationCore:
             result.problems.extend(part.problems)
             result.errors.update(part.errors)
             result.partition = part.partition or result.partition
+            result.prepared.update(part.prepared)
+        if self.pairs is not None:
+            result.pair_input = PairInput(frame_set.stamp, reference, result.prepared)
+            result.prepared = {}
+        return result
+
+    def pair(self, result: FrameResult) -> FrameResult:
+        """The pairs ending at a scored frame: call it on every frame, in the join's order."""
+        if self.pairs is None:
+            return result
+        outcome = self.pairs.add(result.pair_input or PairInput(result.stamp, None, {}))
+        result.pair_input = None
+        result.pairs.update(outcome.scores)
+        result.pair_previous = outcome.previous
+        result.problems.extend(outcome.problems)
         return result
 
     def _score_method(
@@ -312,6 +334,8 @@ class EvaluationCore:
                 self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
+            if self.pairs is not None:
+                part.prepared[method] = self.pairs.prepare(frame.disparity, **terms)
             if self.error_images:
                 part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition

@@ -60,6 +60,20 @@ _INSERT_TIMING = (
     "INSERT INTO timing (sequence, stamp, method, estimate_stamp, arrival) VALUES (?, ?, ?, ?, ?)"
 )
 
+PAIRS_TABLE = "pairs"
+_PAIR_COLUMNS = "sequence, stamp, method, previous, criteria, thresholds, policy, preset, sums"
+_PAIRS_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS pairs (sequence TEXT NOT NULL, stamp INTEGER NOT NULL, "
+    "method TEXT NOT NULL, previous INTEGER NOT NULL, criteria TEXT NOT NULL, "
+    "thresholds BLOB NOT NULL, policy TEXT NOT NULL, preset TEXT NOT NULL, "
+    "sums BLOB NOT NULL, PRIMARY KEY (sequence, stamp, method))"
+)
+"""Each method's temporal pair sums (:mod:`~dispeval_ros.io.store.pairs`); ``stamp`` the later
+frame's, ``previous`` the earlier's. Made with a new database, as ``timing``; one written before
+it existed reads as "temporal: not recorded"."""
+_INSERT_PAIR = f"INSERT INTO pairs ({_PAIR_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_PAIRS = f"SELECT {_PAIR_COLUMNS} FROM pairs"
+
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
     """Whether the database holds table ``name`` (those added after the first schema)."""
@@ -298,7 +312,7 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        for statement in (*_SCHEMA, _TIMING_SCHEMA):
+        for statement in (*_SCHEMA, _TIMING_SCHEMA, _PAIRS_SCHEMA):
             connection.execute(statement)
         connection.executemany(
             "INSERT INTO run (key, ordinal, value) VALUES (?, ?, ?)",

@@ -17,9 +17,12 @@ from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
+    _INSERT_PAIR,
     _INSERT_TIMING,
     _PROVENANCE_TABLE,
+    _SELECT_PAIRS,
     FAILED_MARK,
+    PAIRS_TABLE,
     RESULTS_FILE,
     TIMING_TABLE,
     _check_config,
@@ -190,6 +193,14 @@ class ResultsWriter(ResultsReader):
                         f"unit '{unit}' of {sequence} holds the arrival of an estimate "
                         "(stamp, method) that another unit already stored"
                     ) from None
+            if prepared.pair_rows and self.records_pairs():  # an older database: none
+                try:
+                    self._db.executemany(_INSERT_PAIR, prepared.pair_rows)
+                except sqlite3.IntegrityError:
+                    raise ValueError(
+                        f"unit '{unit}' of {sequence} holds a pair (stamp, method) that another "
+                        "unit already stored"
+                    ) from None
             self._db.execute(
                 "INSERT INTO units (sequence, unit, ordinal) "
                 "VALUES (?, ?, (SELECT COALESCE(MAX(ordinal), -1) + 1 FROM units))",
@@ -274,8 +285,23 @@ class ResultsWriter(ResultsReader):
                 ),
             )
             self._add_timing(other)
+            self._add_pairs(other)
         self._layout = self._read_layout()
         return len(units)
+
+    def _add_pairs(self, other: ResultsReader) -> None:
+        """Copy ``other``'s pair sums; results without the table leave none (as timing)."""
+        if not self.records_pairs():
+            return
+        if not other.records_pairs():
+            self._db.execute(f"DROP TABLE {PAIRS_TABLE}")
+            return
+        try:
+            self._db.executemany(_INSERT_PAIR, other._db.execute(_SELECT_PAIRS))
+        except sqlite3.IntegrityError:
+            raise ConfigurationError(
+                f"{other.path} holds pairs (sequence, stamp, method) that {self.path} holds already"
+            ) from None
 
     def _add_timing(self, other: ResultsReader) -> None:
         """Copy ``other``'s arrival times; results without any leave none (not a part of them)."""
