@@ -33,7 +33,8 @@ class LiveStats:
 class LiveEvaluator:
     """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams.
 
-    With ``workers`` > 1, results may be handed over out of stamp order.
+    With ``workers`` > 1, results may be handed over out of stamp order (and, with
+    ``temporal``, a frame scored after a later one is not paired: its stamp is out of order).
     """
 
     def __init__(
@@ -63,6 +64,7 @@ class LiveEvaluator:
         self._keep_latencies = keep_latencies
         self._clock = clock
         self._lock = threading.Lock()
+        self._pair_lock = threading.Lock()
         self._ready = threading.Condition(self._lock)
         self._queue: deque[tuple[FrameSet[Any, Any], float]] = deque()
         self._dropped: dict[str, int] = dict.fromkeys(config.methods, 0)
@@ -119,6 +121,8 @@ class LiveEvaluator:
                 self._busy += 1
             try:
                 result = self.core.score(frame_set)
+                with self._pair_lock:  # the pair stage takes frames one at a time
+                    self.core.pair(result)
                 self.on_result(result)
             finally:
                 with self._lock:
