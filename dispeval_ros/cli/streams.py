@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.objectives import default_objective_measures
+from dispeval_ros.core.objectives import default_objective_measures, is_pair_measure
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
@@ -221,15 +221,25 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)
+    pairs = config.pair_stage()
+    paired = pairs.scorer.measures if pairs is not None else ()
     unknown = [
         m
         for m in args.objective_measures
-        if m not in config.scored_measures and not is_timing_measure(m)
+        if m not in config.scored_measures and not is_timing_measure(m) and m not in paired
     ]
     if unknown:  # found now, not after the whole recording was scored
+        temporal = (
+            f", nor pair measures ({', '.join(paired)})"
+            if paired
+            else " (pair measures need --temporal)"
+            if any(map(is_pair_measure, unknown))
+            else ""
+        )
         raise ConfigurationError(
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
             f"({', '.join(config.scored_measures)}) nor timing ({', '.join(TIMING_MEASURES)})"
+            + temporal
         )
     return config
 

@@ -213,6 +213,46 @@ def latency_text(timing: Mapping[str, Any] | None) -> str:
     return wrapped(title) + "\n" + fitted_tables(header, rows, keep=1)
 
 
+def pair_table(
+    values: Mapping[str, Mapping[str, Mapping[str, float]]], measures: Sequence[str]
+) -> str:
+    """Pair measures by criterion and method (``values``: method → criterion → measure)."""
+    from dispeval_ros.core.temporal import pair_unit
+
+    header = ["criterion", "method", "n_pair", *(f"{m} [{pair_unit(m)}]" for m in measures)]
+    rows: list[list[object]] = []
+    for criterion in next(iter(values.values())):
+        for method, by_criterion in values.items():
+            one = by_criterion[criterion]
+            rows.append([criterion, method, int(one["n_pair"]), *(one[m] for m in measures)])
+    return fitted_tables(header, rows, keep=2)
+
+
+NO_PAIRS = (
+    "temporal: not recorded (results written before dispeval stored pairs of consecutive frames)"
+)
+
+
+def temporal_text(pairs: Mapping[str, Any] | None, preset: str) -> str:
+    """A sequence's pair measures (``--temporal``), or why there are none.
+
+    ``pairs``: method → its pooled :class:`~dispeval_ros.core.temporal.PairScores`; None: not
+    recorded; empty: no method has two consecutive frames.
+    """
+    if pairs is None:
+        return wrapped(NO_PAIRS)
+    if not pairs:
+        return wrapped("\ntemporal: no pair (no method has an estimate of two consecutive frames)")
+    first = next(iter(pairs.values()))
+    title = (
+        f"\ntemporal consistency (--temporal {preset}: {first.preset.description}; each "
+        "method's pairs of consecutive frames pooled by their sums): "
+        + ", ".join(f"{method} {plural(p.pairs, 'pair')}" for method, p in pairs.items())
+    )
+    table_text = pair_table({m: p.to_dict() for m, p in pairs.items()}, first.measures)
+    return wrapped(title) + "\n" + table_text
+
+
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
@@ -233,6 +273,8 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         latency = latency_text(sequence.timing)
         if latency:
             parts.append(latency)
+        if summary.temporal:
+            parts.append(temporal_text(sequence.pairs, summary.temporal))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]
