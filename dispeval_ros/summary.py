@@ -274,9 +274,9 @@ def summarize(
     overall = None
     if len(summaries) > 1 and matrix is not None and len(methods) > 1:
         overall = evaluate_models(methods, matrix)
-    return RunSummary(
-        granularity, list(measures), summaries, all_names, overall, matrix, run_temporal(store)
-    )
+    stored = [p.preset.name for s in summaries for p in (s.pairs or {}).values()]
+    temporal = run_temporal(store) or (stored[0] if stored else None)  # (live: pairs only)
+    return RunSummary(granularity, list(measures), summaries, all_names, overall, matrix, temporal)
 
 
 def objective_table(

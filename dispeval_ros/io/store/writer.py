@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TypeVar
 
-from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import FramePair, FrameScores, FrameTiming, MatchCounts, Problem
 from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.reader import ResultsReader
@@ -124,6 +124,7 @@ class ResultsWriter(ResultsReader):
         problems: Sequence[Problem] = (),
         counts: Mapping[str, MatchCounts] | None = None,
         timing: Sequence[FrameTiming] = (),
+        pairs: Sequence[FramePair] = (),
     ) -> None:
         """Write one unit of work in one transaction and mark it done; a done unit is a no-op.
 
@@ -133,7 +134,7 @@ class ResultsWriter(ResultsReader):
         self._require_writable()
         if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
-        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts, timing))
+        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts, timing, pairs))
 
     def _written(self, sequence: str, unit: str, failure: bool) -> bool:
         """Whether writing ``unit`` is a no-op: it is done (a failure record: its unit is)."""
