@@ -222,7 +222,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)
     pairs = config.pair_stage()
-    paired = pairs.scorer.measures if pairs is not None else ()
+    paired = pairs.scorer.measures if pairs is not None and pairs.scorer is not None else ()
     unknown = [
         m
         for m in args.objective_measures

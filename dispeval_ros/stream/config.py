@@ -18,6 +18,7 @@ from dataclasses import InitVar, dataclass, field
 from typing import Any
 
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
+from dispeval_ros.core.egomotion import EgoMotionOptions
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, Evaluator
 from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GT_FREE_SCORED, GroundTruthFree
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
@@ -93,6 +94,7 @@ _NEUTRAL = {
     "right_image_topic": "the right image topic",
     "temporal": "the temporal preset",
     "pair_gap_ns": "the pair gap",
+    "egomotion": "the ego-motion residual",
 }
 NEUTRAL_NAMES = FieldNames()
 """The wording for Python callers: fields named in plain words."""
@@ -131,7 +133,10 @@ class CoreConfig:
     """The temporal preset the pairs of consecutive GT frames are scored under (see
     :mod:`~dispeval_ros.stream.pairs`); None: no pair is scored."""
     pair_gap_ns: int = DEFAULT_PAIR_GAP_NS
-    """Frames further apart than this are not paired (with ``temporal``)."""
+    """Frames further apart than this are not paired (with ``temporal`` or ``egomotion``)."""
+    egomotion: bool = False
+    """Also score each method's ego-motion residual over the same pairs (ground-truth-free
+    temporal noise; the camera's motion from the stream's /tf)."""
     names: InitVar[FieldNames | None] = None
     """How the front end names the fields in the errors (not stored; neutral words if None)."""
 
@@ -191,7 +196,19 @@ class CoreConfig:
                 rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
 
     def _check_temporal(self, names: FieldNames) -> None:
-        """A known preset, a positive pair gap, and ground truth to pair."""
+        """A known preset, a positive pair gap, ground truth to pair, a camera to move."""
+        if self.egomotion and self.left_info_topic is None:
+            raise names.error(
+                f"{names.of('egomotion')} moves each estimate by the camera's motion: give "
+                f"{names.of('left_info_topic', 'right_info_topic')} (its principal point and "
+                "frame)",
+                "egomotion",
+            )
+        if self.egomotion and not self.pair_gap_ns > 0:
+            raise names.error(
+                f"{names.of('pair_gap_ns')} must be > 0, got {self.pair_gap_ns / 1e6:g} ms",
+                "pair_gap_ns",
+            )
         if self.temporal is None:
             return
         if self.temporal not in PRESETS:
@@ -291,6 +308,7 @@ class CoreConfig:
                 "lateness_ns",
                 "temporal",
                 "pair_gap_ns",
+                "egomotion",
             )
             if record.get(key) is not None
         }
@@ -403,9 +421,10 @@ class CoreConfig:
             # only when pairs are scored: records of runs without them are unchanged
             **(
                 {"temporal": self.temporal, "pair_gap_ns": self.pair_gap_ns}
-                if self.temporal is not None
+                if self.temporal is not None or self.egomotion
                 else {}
             ),
+            **({"egomotion": True} if self.egomotion else {}),
         }
 
     def ground_truth_free(self) -> GroundTruthFree | None:
@@ -416,9 +435,10 @@ class CoreConfig:
 
     def pair_stage(self) -> PairStage | None:
         """The stage scoring consecutive frames' pairs (None without ``temporal``)."""
-        if self.temporal is None:
+        if self.temporal is None and not self.egomotion:
             return None
-        return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns)
+        motion = EgoMotionOptions() if self.egomotion else None
+        return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns, motion)
 
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones).

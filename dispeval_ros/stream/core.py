@@ -18,28 +18,23 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.core import Camera, Partition, Reference, Scores
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.gtfree import ImagePair, joined
-from dispeval_ros.core.projection import (
-    CloudFilter,
-    CloudProjection,
-    project_cloud,
-    rectified_projection,
-)
-from dispeval_ros.core.temporal import PairScores, PreparedEstimate
+from dispeval_ros.core.projection import CloudFilter, CloudProjection
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.core.transforms import TransformTree, rigid_matrix
-from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
+from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError
 from dispeval_ros.io.grey import stereo_grey
 from dispeval_ros.io.messages import (
     DisparityFrame,
     camera_from_infos,
-    cloud_from_msg,
     disparity_from_msg,
     gt_disparity,
     image_from_msg,
-    rectified_camera_from_info,
     stamp_ns,
     static_transforms_from_msg,
 )
+from dispeval_ros.stream.clouds import cloud_disparity
 from dispeval_ros.stream.config import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
@@ -54,7 +49,7 @@ from dispeval_ros.stream.config import (
     CoreConfig,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
-from dispeval_ros.stream.pairs import PairInput
+from dispeval_ros.stream.pairs import MethodPairInput, PairInput, camera_view
 
 __all__ = [  # the configuration's names stay importable from here (stream.config defines them)
     "CAMERA_INFO_TYPE",
@@ -96,8 +91,10 @@ class FrameResult:
     """With ``temporal``, after :meth:`EvaluationCore.pair`: per method, the pair ending here
     (its earlier frame's stamp: :attr:`pair_previous`)."""
     pair_previous: int | None = None
+    motion_pairs: dict[str, TemporalSums] = field(default_factory=dict)
+    """With ``egomotion``: per method, the ego-motion residual of that pair."""
     pair_input: PairInput | None = None  # for the pair stage, dropped once it ran
-    prepared: dict[str, PreparedEstimate] = field(default_factory=dict, repr=False)
+    prepared: dict[str, MethodPairInput] = field(default_factory=dict, repr=False)
 
     def delays(self) -> dict[str, int]:
         """Per method: arrival minus its estimate's header stamp (ns)."""
@@ -244,7 +241,8 @@ class EvaluationCore:
                     self._count_failed(method)
                 return result
             camera = calibration if isinstance(calibration, Camera) else None
-            return self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            return self._with_pair_input(result, None, camera, pair, infos)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -295,9 +293,25 @@ class EvaluationCore:
             result.errors.update(part.errors)
             result.partition = part.partition or result.partition
             result.prepared.update(part.prepared)
-        if self.pairs is not None:
-            result.pair_input = PairInput(frame_set.stamp, reference, result.prepared)
-            result.prepared = {}
+        return self._with_pair_input(result, reference, reference.camera, pair, infos)
+
+    def _with_pair_input(
+        self,
+        result: FrameResult,
+        reference: Reference | None,
+        camera: Camera | None,
+        pair: ImagePair | None,
+        infos: Mapping[str, Any],
+    ) -> FrameResult:
+        """``result`` with what the pair stage keeps of its frame (nothing without a stage)."""
+        if self.pairs is None:
+            return result
+        view: tuple[Any, str] = (None, "")
+        if self.pairs.egomotion is not None:  # the principal point and frame of the camera
+            view = camera_view(camera, infos, self.config.left_info_topic)
+        partition = None if pair is None else pair.partition
+        result.pair_input = PairInput(result.stamp, reference, result.prepared, partition, *view)
+        result.prepared = {}
         return result
 
     def pair(self, result: FrameResult) -> FrameResult:
@@ -307,6 +321,7 @@ class EvaluationCore:
         outcome = self.pairs.add(result.pair_input or PairInput(result.stamp, None, {}))
         result.pair_input = None
         result.pairs.update(outcome.scores)
+        result.motion_pairs.update(outcome.motion)
         result.pair_previous = outcome.previous
         result.problems.extend(outcome.problems)
         return result
@@ -335,7 +350,8 @@ class EvaluationCore:
             )
             part.estimate_stamps[method] = stamp
             if self.pairs is not None:
-                part.prepared[method] = self.pairs.prepare(frame.disparity, **terms)
+                image = None if pair is None else pair.left
+                part.prepared[method] = self.pairs.prepare(frame.disparity, **terms, image=image)
             if self.error_images:
                 part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition
@@ -503,6 +519,11 @@ class EvaluationCore:
                     method, frame, frame_set, pair, camera, result
                 )
                 result.estimate_stamps[method] = stamp
+                if self.pairs is not None:
+                    terms = frame.scoring(camera)
+                    result.prepared[method] = self.pairs.prepare(
+                        frame.disparity, **terms, image=pair.left
+                    )
             except DispevalError as error:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
@@ -523,43 +544,15 @@ class EvaluationCore:
         shape: tuple[int, ...],
         infos: Mapping[str, Any] | None = None,
     ) -> CloudProjection:
-        """Project a PointCloud2 into the left camera (the sparse GT of one frame).
+        """Project a PointCloud2 into the left camera (:func:`~.clouds.cloud_disparity`).
 
-        ``infos``: the CameraInfo messages by topic (default: the latest pushed). Every problem
-        is one line naming the topic: no x/y/z, no camera, no chain of static transforms, a
-        CameraInfo of another size than the disparity, or no point in view.
+        ``infos``: the CameraInfo messages by topic (default: the latest pushed).
         """
-        topic = self.config.gt_topic
-        cloud = cloud_from_msg(msg, topic)
-        left = self.config.left_info_topic
-        infos = self._infos if infos is None else infos
-        if camera is None or left is None or left not in infos:
-            raise CalibrationError(
-                f"no camera yet for the cloud on {topic}: waiting for the CameraInfo topics"
-            )
-        view = rectified_camera_from_info(infos[left], left)
-        size = (view.height, view.width) if view.height > 0 and view.width > 0 else shape[:2]
-        if tuple(size) != tuple(shape[:2]):
-            raise InputError(
-                f"CameraInfo on {left} is {view.width}×{view.height} but the disparity is "
-                f"{shape[1]}×{shape[0]}: the cloud cannot be projected into that image"
-            )
-        extrinsic = self.extrinsic(view.frame_id, cloud.frame_id)
-        matrix = rectified_projection(extrinsic, view.rectification, view.projection)
-        projected = project_cloud(
-            cloud.points, matrix, (int(size[0]), int(size[1])), camera, self._cloud_filter
-        )
-        if projected.points and not projected.in_front:
-            raise CalibrationError(
-                f"the cloud on {topic}: all {projected.points} points are behind the camera "
-                f"'{view.frame_id}' (Z ≤ 0) with this extrinsic; is it inverted (camera → LiDAR)?"
-            )
-        if not projected.kept:
-            raise InputError(
-                f"the cloud on {topic}: none of its {projected.points} points lands in the "
-                f"{size[1]}×{size[0]} image ({projected.in_front} in front of the camera)"
-            )
-        return projected
+        config, infos = self.config, self._infos if infos is None else infos
+        return cloud_disparity(
+            msg, config.gt_topic, config.left_info_topic, camera, shape, infos,
+            self.extrinsic, self._cloud_filter,
+        )  # fmt: skip
 
     def _count_failed(self, method: str) -> None:
         with self._failed_lock:  # score() may run in several threads

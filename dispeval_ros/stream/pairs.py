@@ -16,17 +16,35 @@ rules, stated once (docs/method.md, "Temporal measures in bags and live"):
 - the ground truth of both frames is used as ``eval --scene --temporal`` uses it (dense GT:
   the pixels with GT in both frames).
 
-Nothing here knows of ROS or files.
+With ``egomotion`` the same pairs also give each method's ego-motion residual
+(:func:`~dispeval_ros.core.egomotion.egomotion_residual`: ground-truth-free temporal noise, on
+the ``gtfree:`` criteria of the earlier frame's images), the camera's motion between the two
+stamps taken from :attr:`PairStage.motion`; a pair whose motion cannot be looked up is one
+problem line. Nothing here knows of ROS or files.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
+import numpy as np
+
+from dispeval_ros.core.camera import Camera
+from dispeval_ros.core.criteria import Partition
+from dispeval_ros.core.egomotion import (
+    EgoMotionOptions,
+    MotionFrame,
+    PinholeCamera,
+    TemporalSums,
+    egomotion_residual,
+    prepare_frame,
+)
 from dispeval_ros.core.evaluator import Evaluator, Reference
 from dispeval_ros.core.temporal import PairScores, PreparedEstimate, TemporalScorer
-from dispeval_ros.errors import DispevalError
+from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.io.messages import rectified_camera_from_info
 
 DEFAULT_PAIR_GAP_NS = 250_000_000
 """Frames further apart than this (stamps) are not a pair: a camera at 4 Hz or more has its
@@ -36,19 +54,39 @@ PAIR_GAP_RULE = (
     "frame or a pause ends the run of pairs)"
 )
 """The pair gap's meaning, as every front end's help says it."""
+Motion = Callable[[str, int, int], np.ndarray]
+"""``motion(camera_frame, t0_ns, t1_ns)``: the pose of the camera at ``t1`` in its frame at
+``t0`` (4×4; it maps points of the camera frame at ``t1`` into the frame at ``t0``), the
+convention of :func:`~dispeval_ros.core.egomotion.camera_motion` and of
+``TransformHistory.camera_motion``; raises :class:`DispevalError` (one line) when it cannot."""
+
+
+@dataclass(frozen=True)
+class MethodPairInput:
+    """One method's estimate of one frame, made ready for the pairs it is in (any thread)."""
+
+    prepared: PreparedEstimate | None = None
+    """For the pair measures with GT (``temporal``)."""
+    motion: MotionFrame | None = None
+    """For the ego-motion residual (``egomotion``)."""
 
 
 @dataclass(frozen=True)
 class PairInput:
-    """What one scored frame leaves for its pairs: its reference and each prepared estimate.
+    """What one scored frame leaves for its pairs: its references and each method's estimate.
 
-    ``reference`` is None when the frame's ground truth could not be scored; ``estimates``
-    holds the methods scored on the frame.
+    ``reference`` is None when the frame's ground truth could not be scored (or there is
+    none); ``estimates`` holds the methods scored on the frame. ``partition`` (the
+    ground-truth-free criteria of its images), ``camera`` and ``camera_frame`` serve the
+    ego-motion residual.
     """
 
     stamp: int
     reference: Reference | None
-    estimates: Mapping[str, PreparedEstimate]
+    estimates: Mapping[str, MethodPairInput]
+    partition: Partition | None = None
+    camera: PinholeCamera | None = None
+    camera_frame: str = ""
 
 
 @dataclass(frozen=True)
@@ -58,6 +96,8 @@ class PairOutcome:
     previous: int | None
     scores: dict[str, PairScores]
     problems: list[tuple[str | None, str]]
+    motion: dict[str, TemporalSums] = field(default_factory=dict)
+    """Per method, the ego-motion residual's sums of the pair (``egomotion``)."""
 
 
 def no_pair(method: str, previous: int, stamp: int, reason: str) -> str:
@@ -68,21 +108,50 @@ def no_pair(method: str, previous: int, stamp: int, reason: str) -> str:
 class PairStage:
     """Keeps the last frame of a stream and scores the pairs ending at each next frame.
 
-    Not thread-safe: call :meth:`add` from one thread, in the join's order of the frames.
+    ``preset``: the pair measures with GT (None: not scored); ``egomotion``: the ego-motion
+    residual's options (None: not scored). Not thread-safe: call :meth:`add` from one thread,
+    in the join's order of the frames; :meth:`prepare` may run on any thread.
     """
 
-    def __init__(self, evaluator: Evaluator, preset: str, gap_ns: int = DEFAULT_PAIR_GAP_NS):
-        self.scorer = TemporalScorer(evaluator, preset=preset)
+    def __init__(
+        self,
+        evaluator: Evaluator,
+        preset: str | None,
+        gap_ns: int = DEFAULT_PAIR_GAP_NS,
+        egomotion: EgoMotionOptions | None = None,
+    ) -> None:
+        self.scorer = None if preset is None else TemporalScorer(evaluator, preset=preset)
+        self.egomotion = egomotion
         self.gap_ns = gap_ns
+        self.motion: Motion | None = None
+        """Where the ego-motion residual takes the camera's motion from (the front end sets
+        it: the stream's /tf history, or a test's exact motion)."""
         self._previous: PairInput | None = None
 
     def prepare(
-        self, estimate: object, est_range: tuple[float, float] | None, est_offset: float
-    ) -> PreparedEstimate:
-        """One estimate made ready for both pairs it is in (any thread)."""
-        import numpy as np
+        self,
+        estimate: np.ndarray,
+        est_range: tuple[float, float] | None,
+        est_offset: float,
+        image: np.ndarray | None = None,
+    ) -> MethodPairInput:
+        """One estimate made ready for both pairs it is in (any thread).
 
-        return self.scorer.prepare(np.asarray(estimate), est_range=est_range, est_offset=est_offset)
+        ``image``: the frame's left grey image, for the ego-motion residual's photometric
+        mask (None: not applied).
+        """
+        prepared = None
+        if self.scorer is not None:
+            prepared = self.scorer.prepare(estimate, est_range=est_range, est_offset=est_offset)
+        motion = None
+        if self.egomotion is not None:
+            motion = prepare_frame(
+                motion_disparity(estimate, est_range, est_offset),
+                image,
+                valid_range=(-np.inf, np.inf),
+                options=self.egomotion,
+            )
+        return MethodPairInput(prepared, motion)
 
     def add(self, frame: PairInput) -> PairOutcome:
         """The pairs (previous frame, ``frame``) of every method; ``frame`` becomes the previous."""
@@ -90,16 +159,14 @@ class PairStage:
         if previous is None:
             return PairOutcome(None, {}, [])
         stamp, before = frame.stamp, previous.stamp
-        methods = list(previous.estimates)
         problems: list[tuple[str | None, str]] = []
         if stamp <= before:
             reason = f"its stamp is not after the previous frame's ({before}): no pair with it"
             problems.append((None, f"frame at {stamp}: {reason}"))
             return PairOutcome(before, {}, problems)
         gap = stamp - before
-        scores: dict[str, PairScores] = {}
-        for method in methods:
-            if method not in frame.estimates or frame.reference is None:
+        for method in previous.estimates:
+            if method not in frame.estimates:
                 problems.append(
                     (method, no_pair(method, before, stamp, f"{method} not scored at {stamp}"))
                 )
@@ -109,20 +176,105 @@ class PairStage:
                     f"{self.gap_ns / 1e6:g} ms"
                 )
                 problems.append((method, no_pair(method, before, stamp, reason)))
-        pairable = [m for m in methods if m in frame.estimates and frame.reference is not None]
-        if gap > self.gap_ns or not pairable or previous.reference is None:
-            return PairOutcome(before, scores, problems)
-        assert frame.reference is not None
+        pairable = [m for m in previous.estimates if m in frame.estimates]
+        if gap > self.gap_ns or not pairable:
+            return PairOutcome(before, {}, problems)
+        scores = self._tepe(previous, frame, pairable, problems)
+        motion = self._egomotion(previous, frame, pairable, problems)
+        return PairOutcome(before, scores, problems, motion)
+
+    def _tepe(
+        self,
+        previous: PairInput,
+        frame: PairInput,
+        methods: list[str],
+        problems: list[tuple[str | None, str]],
+    ) -> dict[str, PairScores]:
+        """The pair measures with GT of ``methods`` (both frames' GT scored)."""
+        scores: dict[str, PairScores] = {}
+        if self.scorer is None or previous.reference is None or frame.reference is None:
+            return scores
+        before, stamp = previous.stamp, frame.stamp
         try:
             pair = self.scorer.pair(previous.reference, frame.reference)
         except DispevalError as error:
-            problems.extend((m, no_pair(m, before, stamp, str(error))) for m in pairable)
-            return PairOutcome(before, scores, problems)
-        for method in pairable:
+            problems.extend((m, no_pair(m, before, stamp, str(error))) for m in methods)
+            return scores
+        for method in methods:
+            first, second = previous.estimates[method].prepared, frame.estimates[method].prepared
+            if first is None or second is None:
+                continue
             try:
-                scores[method] = self.scorer.score(
-                    pair, previous.estimates[method], frame.estimates[method]
-                )
+                scores[method] = self.scorer.score(pair, first, second)
             except DispevalError as error:
                 problems.append((method, no_pair(method, before, stamp, str(error))))
-        return PairOutcome(before, scores, problems)
+        return scores
+
+    def _egomotion(
+        self,
+        previous: PairInput,
+        frame: PairInput,
+        methods: list[str],
+        problems: list[tuple[str | None, str]],
+    ) -> dict[str, TemporalSums]:
+        """The ego-motion residual of ``methods``; an unknown motion is one line for all."""
+        sums: dict[str, TemporalSums] = {}
+        if self.egomotion is None:
+            return sums
+        before, stamp = previous.stamp, frame.stamp
+        where = f"no ego-motion pair {before} → {stamp}"
+        try:
+            if self.motion is None:
+                raise ConfigurationError("no source of the camera's motion (/tf) is set")
+            if previous.camera is None:
+                raise ConfigurationError(
+                    "no camera principal point (the left CameraInfo) for the earlier frame"
+                )
+            moved = self.motion(previous.camera_frame, before, stamp)
+        except DispevalError as error:
+            problems.append((None, f"{where}: {error}"))
+            return sums
+        for method in methods:
+            first, second = previous.estimates[method].motion, frame.estimates[method].motion
+            if first is None or second is None:
+                continue
+            try:
+                sums[method] = egomotion_residual(
+                    first, second, moved, previous.camera, previous.partition, self.egomotion
+                )
+            except DispevalError as error:
+                problems.append((method, f"{method}: {where}: {error}"))
+        return sums
+
+
+def camera_view(
+    camera: Camera | None, infos: Mapping[str, Any], left: str | None
+) -> tuple[PinholeCamera | None, str]:
+    """The left camera with its principal point, and its frame, from its CameraInfo.
+
+    ``(None, "")`` without a camera or a left CameraInfo (the pair then says so).
+    """
+    if camera is None or left is None or left not in infos:
+        return None, ""
+    try:
+        view = rectified_camera_from_info(infos[left], left)
+    except DispevalError:
+        return None, ""
+    cx, cy = float(view.projection[0, 2]), float(view.projection[1, 2])
+    return PinholeCamera(camera, cx, cy), view.frame_id
+
+
+def motion_disparity(
+    estimate: np.ndarray, est_range: tuple[float, float] | None, est_offset: float
+) -> np.ndarray:
+    """The estimate as the ego-motion residual reads it: ``value − offset``, NaN where missing.
+
+    Valid as :func:`~dispeval_ros.core.evaluator.estimate_coding` tells it, on the values as
+    published: inside ``est_range``; a lower end of −inf (or no range): > 0 instead.
+    """
+    values = np.asarray(estimate, dtype=np.float32)
+    lo, hi = est_range if est_range is not None else (-np.inf, np.inf)
+    with np.errstate(invalid="ignore"):
+        low = values > 0 if lo == -np.inf else values >= lo
+        valid = low & (values <= hi) & np.isfinite(values)
+    return np.where(valid, values - np.float32(est_offset), np.float32(np.nan))

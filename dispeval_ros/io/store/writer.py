@@ -186,20 +186,19 @@ class ResultsWriter(ResultsReader):
                 problem_rows,
             )
             self._db.executemany(_ADD_COUNTS, count_rows)
-            if prepared.timing_rows and self.records_timing():  # an older database: none
+            timing, pairs = prepared.timing_rows, prepared.pair_rows
+            later_tables = (  # tables added after the first schema: an older database has none
+                (self.records_timing(), _INSERT_TIMING, timing, "the arrival of an estimate"),
+                (self.records_pairs(), _INSERT_PAIR, pairs, "a pair"),
+            )
+            for recorded, statement, rows, what in later_tables:
+                if not (rows and recorded):
+                    continue
                 try:
-                    self._db.executemany(_INSERT_TIMING, prepared.timing_rows)
+                    self._db.executemany(statement, rows)
                 except sqlite3.IntegrityError:
                     raise ValueError(
-                        f"unit '{unit}' of {sequence} holds the arrival of an estimate "
-                        "(stamp, method) that another unit already stored"
-                    ) from None
-            if prepared.pair_rows and self.records_pairs():  # an older database: none
-                try:
-                    self._db.executemany(_INSERT_PAIR, prepared.pair_rows)
-                except sqlite3.IntegrityError:
-                    raise ValueError(
-                        f"unit '{unit}' of {sequence} holds a pair (stamp, method) that another "
+                        f"unit '{unit}' of {sequence} holds {what} (stamp, method) that another "
                         "unit already stored"
                     ) from None
             self._db.execute(
