@@ -19,7 +19,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
-from dispeval_ros.core.measures import applies
+from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.measures import GT_FREE_PREFIX, applies
 from dispeval_ros.core.objectives import (
     default_objective_measures,
     has_points,
@@ -52,6 +53,22 @@ class SequenceSummary:
     """Per method with a pair, its pairs of consecutive frames pooled (``--temporal``); None:
     not recorded (a database older than the pairs table)."""
 
+    motion: dict[str, tuple[int, TemporalSums]] | None = None
+    """Per method: its ego-motion pairs and their residual sums pooled (``egomotion``)."""
+
+    def egomotion_dict(self) -> dict[str, Any] | None:
+        """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
+        if self.motion is None:
+            return None
+        return {
+            method: {
+                "pairs": pairs,
+                "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
+                "offsets": list(sums.offsets),
+            }
+            for method, (pairs, sums) in self.motion.items()
+        }
+
     def temporal_dict(self) -> dict[str, Any] | None:
         """The JSON ``temporal`` entry: per method its pairs and values by criterion."""
         if self.pairs is None:
@@ -75,6 +92,8 @@ class RunSummary:
     """Methods × ``overall_objectives`` (every sequence's objectives side by side)."""
     temporal: str | None = None
     """The temporal preset the run scored pairs under (None: no ``--temporal``)."""
+    egomotion: bool = False
+    """Whether the run scored the ego-motion residual of its pairs."""
 
     def benchmark_document(self) -> dict[str, Any]:
         """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
@@ -106,6 +125,7 @@ class RunSummary:
                     if s.timing is None
                     else {m: t.to_dict() for m, t in s.timing.items()},
                     **({"temporal": s.temporal_dict()} if self.temporal else {}),
+                    **({"egomotion": s.egomotion_dict()} if self.egomotion else {}),
                 }
                 for s in self.sequences
             ],
@@ -184,6 +204,12 @@ def run_temporal(store: object) -> str | None:
     config = getattr(store, "config", None)
     preset = config().get("temporal") if callable(config) else None
     return str(preset) if preset else None
+
+
+def sequence_motion(store: object, sequence: str) -> dict[str, tuple[int, TemporalSums]] | None:
+    """Per method, its ego-motion pairs in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "motion_pairs", None)
+    return reader(sequence) if reader else None
 
 
 def sequence_pairs(store: object, sequence: str) -> dict[str, PairScores] | None:
@@ -265,6 +291,7 @@ def summarize(
                 models,
                 timing,
                 pairs,
+                sequence_motion(store, sequence),
             )
         )
         if names:
@@ -276,7 +303,12 @@ def summarize(
         overall = evaluate_models(methods, matrix)
     stored = [p.preset.name for s in summaries for p in (s.pairs or {}).values()]
     temporal = run_temporal(store) or (stored[0] if stored else None)  # (live: pairs only)
-    return RunSummary(granularity, list(measures), summaries, all_names, overall, matrix, temporal)
+    config = getattr(store, "config", None)
+    egomotion = bool(config().get("egomotion")) if callable(config) else False
+    egomotion = egomotion or any(s.motion for s in summaries)
+    return RunSummary(
+        granularity, list(measures), summaries, all_names, overall, matrix, temporal, egomotion
+    )
 
 
 def objective_table(

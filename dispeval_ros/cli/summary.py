@@ -253,6 +253,37 @@ def temporal_text(pairs: Mapping[str, Any] | None, preset: str) -> str:
     return wrapped(title) + "\n" + table_text
 
 
+def egomotion_text(motion: Mapping[str, Any] | None) -> str:
+    """A sequence's ego-motion residuals (``egomotion``), or why there are none.
+
+    ``motion``: method → (pairs, pooled :class:`~dispeval_ros.core.egomotion.TemporalSums`);
+    None: not recorded; empty: no pair.
+    """
+    from dispeval_ros.cli.egomotion_eval import LABEL, MASKED
+
+    if motion is None:
+        return wrapped("\nego-motion residual: not recorded (results older than it)")
+    if not motion:
+        return wrapped("\nego-motion residual: no pair (no method has two consecutive frames)")
+    first = next(iter(motion.values()))[1]
+    bad = [f"bad_{t:g}" for t in first.thresholds]
+    header = [
+        "criterion", "method", "pairs", "n_residual", "mean_abs [px]", "rms [px]",
+        *(f"{b} [%]" for b in bad), "mean_abs_z [m]", "rms_z [m]", *MASKED,
+    ]  # fmt: skip
+    rows: list[list[object]] = []
+    for criterion in first.criteria:
+        for method, (pairs, sums) in motion.items():
+            one = sums.summary(criterion)
+            rows.append([
+                GT_FREE_PREFIX + criterion, method, pairs, int(one["n_residual"]),
+                one["mean_abs"], one["rms"], *(one[b] for b in bad), one["mean_abs_z"],
+                one["rms_z"], *(int(one[m]) for m in MASKED),
+            ])  # fmt: skip
+    title = f"\nego-motion residual of each method's pairs of consecutive frames ({LABEL})"
+    return wrapped(title) + "\n" + fitted_tables(header, rows, keep=2)
+
+
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
@@ -275,6 +306,8 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
             parts.append(latency)
         if summary.temporal:
             parts.append(temporal_text(sequence.pairs, summary.temporal))
+        if getattr(summary, "egomotion", False):
+            parts.append(egomotion_text(sequence.motion))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

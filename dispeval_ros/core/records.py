@@ -11,10 +11,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.egomotion import TemporalSums
     from dispeval_ros.core.measures import Scores
     from dispeval_ros.core.temporal import PairScores
 
-__all__ = ["FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+__all__ = ["FrameMotion", "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,17 @@ class FramePair:
     method: str
     previous: int
     scores: PairScores
+
+
+@dataclass(frozen=True)
+class FrameMotion:
+    """One method's ego-motion residual sums of two consecutive frames (as :class:`FramePair`)."""
+
+    sequence: str
+    stamp: int
+    method: str
+    previous: int
+    sums: TemporalSums
 
 
 @dataclass(frozen=True)

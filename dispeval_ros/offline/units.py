@@ -27,7 +27,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dispeval_ros.core.records import FramePair, FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
 from dispeval_ros.io.messages import stamp_ns
@@ -83,6 +90,8 @@ class UnitResult:
     """When each method's estimate of a kept frame was logged (scored or not)."""
     pairs: list[FramePair] = field(default_factory=list)
     """With ``temporal``: the pairs whose later frame this unit kept."""
+    motion: list[FrameMotion] = field(default_factory=list)
+    """With ``egomotion``: the ego-motion residuals of those pairs."""
     messages: int = 0
     kept: dict[int, int] = field(default_factory=dict)
     """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
@@ -117,6 +126,7 @@ class UnitRows:
             result.counts,
             result.timing,
             result.pairs,
+            result.motion,
         )
         return cls(
             unit,
@@ -368,11 +378,16 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         core.pair(frame)  # in the join's order, kept or not (see stream/pairs.py)
         if not keep:
             return
-        result.pairs.extend(
-            FramePair(unit.sequence, frame.stamp, method, frame.pair_previous, scores)
-            for method, scores in frame.pairs.items()
-            if frame.pair_previous is not None
-        )
+        if frame.pair_previous is not None:
+            previous = frame.pair_previous
+            result.pairs.extend(
+                FramePair(unit.sequence, frame.stamp, method, previous, scores)
+                for method, scores in frame.pairs.items()
+            )
+            result.motion.extend(
+                FrameMotion(unit.sequence, frame.stamp, method, previous, sums)
+                for method, sums in frame.motion_pairs.items()
+            )
         result.timing.extend(
             FrameTiming(unit.sequence, frame.stamp, method, frame.sent[method], arrival)
             for method, arrival in frame.arrivals.items()
@@ -410,7 +425,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             result.kept[frame_set.stamp] = frame_set.arrival
             score(frame_set, True)
 
-    lookback = config.pair_gap_ns if config.temporal is not None else 0  # the frame before
+    lookback = config.pair_gap_ns if core.pairs is not None else 0  # the frame before
     read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns - lookback
     read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
 

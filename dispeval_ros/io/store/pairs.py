@@ -15,8 +15,9 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
 from dispeval_ros.core.kernels.temporal import PAIR_COUNT
-from dispeval_ros.core.records import FramePair
+from dispeval_ros.core.records import FrameMotion, FramePair
 from dispeval_ros.core.temporal import PRESETS, PairScores
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store.schema import _BLOB
@@ -75,3 +76,57 @@ def read_pairs(
         )
     order = [m for m in methods if m in found] + [m for m in found if m not in methods]
     return {method: PairScores.combine(found[method]) for method in order}
+
+
+def motion_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[tuple[object, ...]]:
+    """The ``motion_pairs`` rows of a unit's ego-motion residuals (each of one pair)."""
+    rows: list[tuple[object, ...]] = []
+    for pair in pairs:
+        if pair.sequence != sequence:
+            raise ValueError(f"unit '{unit}' of {sequence} holds a pair of {pair.sequence}")
+        sums = pair.sums
+        if len(sums.offsets) != 1:
+            raise ValueError(f"{pair.method} at {pair.stamp}: not the sums of one pair")
+        rows.append(
+            (
+                sequence,
+                int(pair.stamp),
+                pair.method,
+                int(pair.previous),
+                json.dumps(list(sums.criteria)),
+                np.asarray(sums.thresholds, dtype=_BLOB).tobytes(),
+                float(sums.offsets[0]),
+                np.ascontiguousarray(sums.sums, dtype=_BLOB).tobytes(),
+            )
+        )
+    return rows
+
+
+def read_motion(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, tuple[int, TemporalSums]]:
+    """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
+    rows = connection.execute(
+        "SELECT method, criteria, thresholds, offset, sums FROM motion_pairs "
+        "WHERE sequence = ? ORDER BY stamp",
+        (sequence,),
+    )
+    found: dict[str, list[TemporalSums]] = {}
+    for method, criteria, thresholds, offset, blob in rows:
+        names = tuple(json.loads(criteria))
+        levels = tuple(np.frombuffer(thresholds, dtype=_BLOB).astype(float).tolist())
+        sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
+        width = len(BASE_COLUMNS) + len(levels)
+        if sums.size != len(names) * width:
+            raise InputError(f"{where}: a stored ego-motion row of {method} is damaged")
+        one = TemporalSums("egomotion", names, levels, sums.reshape(len(names), width), (offset,))
+        found.setdefault(method, []).append(one)
+    order = [m for m in methods if m in found] + [m for m in found if m not in methods]
+    return {method: (len(found[method]), _total(found[method])) for method in order}
+
+
+def _total(parts: Sequence[TemporalSums]) -> TemporalSums:
+    total = parts[0]
+    for part in parts[1:]:
+        total = total + part
+    return total

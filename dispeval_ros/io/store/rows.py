@@ -8,9 +8,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dispeval_ros.core.records import FramePair, FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.store.pairs import pair_rows
+from dispeval_ros.io.store.pairs import motion_rows, pair_rows
 from dispeval_ros.io.store.schema import _BLOB, _Layout
 
 
@@ -28,6 +35,7 @@ class PreparedUnit:
     count_rows: list[tuple[object, ...]]
     timing_rows: list[tuple[object, ...]] = field(default_factory=list)
     pair_rows: list[tuple[object, ...]] = field(default_factory=list)
+    motion_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -43,6 +51,7 @@ def prepare_unit(
     counts: Mapping[str, MatchCounts] | None = None,
     timing: Sequence[FrameTiming] = (),
     pairs: Sequence[FramePair] = (),
+    motion: Sequence[FrameMotion] = (),
 ) -> PreparedUnit:
     """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
     layout = _unit_layout(unit, frames)
@@ -83,6 +92,7 @@ def prepare_unit(
         count_rows,
         timing_rows,
         pair_rows(sequence, unit, pairs),
+        motion_rows(sequence, unit, motion),
     )
 
 
