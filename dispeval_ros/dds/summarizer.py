@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of
 from dispeval_ros.dds.evaluator import MIN_RESTART_NS
@@ -44,6 +45,7 @@ from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, gro
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     arrivals_of,
+    motion_from_status,
     pair_from_status,
     read_problem,
     scores_from_status,
@@ -110,6 +112,7 @@ class DdsSummarizer:
         scores: dict[str, Scores] = {}
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
+        motion: dict[str, tuple[int, TemporalSums]] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -126,10 +129,13 @@ class DdsSummarizer:
                     pair = pair_from_status(record.values)
                     if pair is not None:
                         pairs[record.name] = pair
+                    moved = motion_from_status(record.values)
+                    if moved is not None:
+                        motion[record.name] = moved
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries, arrivals, pairs)
+        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion)
 
     def add(
         self,
@@ -139,11 +145,13 @@ class DdsSummarizer:
         deliveries: list[Delivery] | None = None,
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
+        motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups.
 
         ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency);
-        ``pairs``: per method, the pair ending at the frame (``temporal``).
+        ``pairs``, ``motion``: per method, the pair ending at the frame (``temporal``) and its
+        ego-motion residual (``egomotion``).
         """
         summary = None
         with self._lock:
@@ -162,7 +170,7 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores, arrivals, pairs)
+                summary = self.core.add(stamp, scores, arrivals, pairs, motion)
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)

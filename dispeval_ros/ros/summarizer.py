@@ -31,6 +31,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_srvs.srv import Trigger
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
@@ -44,6 +45,7 @@ from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     arrivals_of,
+    motion_from_status,
     pair_from_status,
     read_problem,
     scores_from_status,
@@ -118,6 +120,7 @@ class SummarizerNode(Node):
         frame: dict[str, Scores] = {}
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
+        motion: dict[str, tuple[int, TemporalSums]] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -135,6 +138,9 @@ class SummarizerNode(Node):
                         pair = pair_from_status(record.values)
                         if pair is not None:
                             pairs[record.name] = pair
+                        moved = motion_from_status(record.values)
+                        if moved is not None:
+                            motion[record.name] = moved
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
@@ -151,7 +157,7 @@ class SummarizerNode(Node):
             if not frame and not arrivals:
                 return
             try:
-                summary = self._core.add(stamp, frame, arrivals, pairs)
+                summary = self._core.add(stamp, frame, arrivals, pairs, motion)
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

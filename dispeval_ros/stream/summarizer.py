@@ -16,9 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.objectives import is_pair_measure
 from dispeval_ros.core.provenance import provenance_record
-from dispeval_ros.core.records import FramePair, FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
@@ -139,6 +147,7 @@ class SummarizerCore:
         self._pending: list[FrameScores] = []
         self._timing: list[FrameTiming] = []
         self._pairs: list[FramePair] = []
+        self._motion: list[FrameMotion] = []
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
@@ -155,6 +164,7 @@ class SummarizerCore:
         scores: Mapping[str, Scores],
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
+        motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
@@ -162,8 +172,13 @@ class SummarizerCore:
         of an estimate that could not be scored: it was delivered all the same, and ``dispeval
         bag`` keeps its arrival too. Without scores only the arrivals are recorded. ``pairs``:
         per method, the pair ending at this frame (the earlier frame's stamp, its scores), stored
-        with the unit as ``dispeval bag --temporal`` stores it.
+        with the unit as ``dispeval bag --temporal`` stores it; ``motion``: likewise its
+        ego-motion residual.
         """
+        self._motion.extend(
+            FrameMotion(self.sequence, int(stamp), method, previous, sums)
+            for method, (previous, sums) in (motion or {}).items()
+        )
         self._pairs.extend(
             FramePair(self.sequence, int(stamp), method, previous, pair)
             for method, (previous, pair) in (pairs or {}).items()
@@ -191,12 +206,13 @@ class SummarizerCore:
             counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
         unit = f"{self._units:06d}"
         self.store.add_unit(
-            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs
+            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs, self._motion
         )
         self._units += 1
         self._pending = []
         self._timing = []
         self._pairs = []
+        self._motion = []
         # Live summaries come from the running totals (O(1) per frame); per-frame objectives
         # and timing ones need every frame and so read the database. finish() always does.
         timed = any(

@@ -29,6 +29,7 @@ from dispeval_ros.core.measures import (
 from dispeval_ros.errors import ConfigurationError, InputError
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.egomotion import TemporalSums
     from dispeval_ros.core.temporal import PairScores
     from dispeval_ros.stream.core import FrameResult
 
@@ -54,6 +55,12 @@ PAIR_SUMS_KEY = "pair_sums"
 PAIR_PREVIOUS_KEY = "_pair_previous"
 """The stamp (ns) of the pair's earlier frame."""
 PAIR_META = ("_pair_thresholds", "_pair_policy", "_pair_preset")
+MOTION_PREFIX = "egomotion/"
+"""The ego-motion residual of that pair: ``egomotion/gtfree:CRITERION/VALUE`` (ground-truth
+free, so on ``gtfree:`` criteria), its sums ``.../motion_sums``, ``_motion_offset`` (px) and
+``_motion_thresholds``; the earlier frame is :data:`PAIR_PREVIOUS_KEY`'s."""
+MOTION_SUMS_KEY = "motion_sums"
+MOTION_META = ("_motion_thresholds", "_motion_offset")
 META_KEYS = (
     "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
     DELAY_KEY,
@@ -169,12 +176,14 @@ def scores_status(
     estimate_stamp: int | None = None,
     arrival: int | None = None,
     pair: tuple[int, PairScores] | None = None,
+    motion: tuple[int, TemporalSums] | None = None,
 ) -> StatusRecord:
     """The status of one method on one frame: every ``criterion/measure`` plus raw sums.
 
     With ``arrival`` (and ``estimate_stamp``): when the estimate arrived and its delay, so a
     summarizer stores the latency as ``dispeval bag`` does (:func:`arrival_of`). With ``pair``
-    (the earlier frame's stamp, the pair's scores): the pair measures (:data:`PAIR_PREFIX`).
+    (the earlier frame's stamp, the pair's scores): the pair measures (:data:`PAIR_PREFIX`);
+    with ``motion`` (the same stamp, the residual's sums): :data:`MOTION_PREFIX`'s keys.
     """
     values: list[tuple[str, str]] = []
     level = OK
@@ -198,6 +207,8 @@ def scores_status(
     values.append(("_overlapping", " ".join(scores.overlapping)))
     if pair is not None:
         values.extend(pair_values(*pair))
+    if motion is not None:
+        values.extend(motion_values(*motion, with_previous=pair is None))
     delay = _timing_values(values, estimate_stamp, arrival)
     if delay is not None:
         found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
@@ -218,6 +229,41 @@ def pair_values(previous: int, pair: PairScores) -> list[tuple[str, str]]:
     thresholds = " ".join(format_number(t) for t in pair.thresholds)
     meta = (thresholds, pair.policy, pair.preset.name)
     return [*values, (PAIR_PREVIOUS_KEY, str(int(previous))), *zip(PAIR_META, meta, strict=True)]
+
+
+def motion_values(
+    previous: int, sums: TemporalSums, with_previous: bool = True
+) -> list[tuple[str, str]]:
+    """The keys of a pair's ego-motion residual (read back by :func:`motion_from_status`)."""
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
+        name = f"{MOTION_PREFIX}{GT_FREE_PREFIX}{criterion}/"
+        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
+        values.append((name + MOTION_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    values.append((MOTION_META[0], " ".join(format_number(t) for t in sums.thresholds)))
+    values.append((MOTION_META[1], format_number(sums.offsets[0])))
+    return values + ([(PAIR_PREVIOUS_KEY, str(int(previous)))] if with_previous else [])
+
+
+def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, TemporalSums] | None:
+    """``(earlier frame's stamp, ego-motion sums)`` of a status with them, else None."""
+    from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
+
+    table = dict(values)
+    if MOTION_META[1] not in table:
+        return None
+    suffix, start = "/" + MOTION_SUMS_KEY, len(MOTION_PREFIX) + len(GT_FREE_PREFIX)
+    keys = [k for k, _ in values if k.startswith(MOTION_PREFIX) and k.endswith(suffix)]
+    criteria = [k[start : -len(suffix)] for k in keys]
+    try:
+        thresholds = tuple(float(t) for t in table[MOTION_META[0]].split())
+        sums = np.array([[float(v) for v in table[k].split()] for k in keys])
+        offset, previous = float(table[MOTION_META[1]]), int(table[PAIR_PREVIOUS_KEY])
+        if sums.shape != (len(criteria), len(BASE_COLUMNS) + len(thresholds)):
+            raise ValueError(sums.shape)
+    except (KeyError, ValueError):
+        raise InputError("the diagnostic status has malformed ego-motion keys") from None
+    return previous, TemporalSums("egomotion", tuple(criteria), thresholds, sums, (offset,))
 
 
 def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores] | None:
@@ -267,6 +313,9 @@ def result_statuses(
             None
             if previous is None or method not in result.pairs
             else (previous, result.pairs[method]),
+            None
+            if previous is None or method not in result.motion_pairs
+            else (previous, result.motion_pairs[method]),
         )
         for method, scores in result.scores.items()
     ]

@@ -161,3 +161,16 @@ def test_a_database_older_than_the_pairs_table_reads_as_not_recorded(
         summary = summarize(store)
     assert summary.to_dict()["sequences"][0]["temporal"] is None
     assert NO_PAIRS.split("(")[0] in run_summary_text(summary)
+
+
+def test_a_sequence_of_one_frame_says_no_pair(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, args, _ = fast_rough_bag(tmp_path, 1)
+    assert main([*args, "--temporal"]) == 0
+    assert "temporal: no pair (no method has an estimate of two consecutive frames)" in (
+        " ".join(capsys.readouterr().out.split())
+    )
+    document = json.loads((tmp_path / "res" / "summary.json").read_text())
+    assert document["sequences"][0]["temporal"] == {}
+    assert pair_rows(tmp_path / "res") == []

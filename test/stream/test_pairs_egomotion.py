@@ -22,6 +22,7 @@ from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GroundTruthFree
 from dispeval_ros.core.transforms import invert_rigid
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagSource
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import (
     CAMERA_FRAME,
     GT_TOPIC,
@@ -36,6 +37,13 @@ from dispeval_ros.offline.make_bag import (
     write_bag,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
+from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
+from dispeval_ros.stream.vectors import (
+    MOTION_PREFIX,
+    motion_from_status,
+    result_statuses,
+    scores_from_status,
+)
 from dispeval_ros.testbed import driving_setup
 from dispeval_ros.testbed.methods import default_methods
 
@@ -159,3 +167,38 @@ def test_a_motion_that_cannot_be_looked_up_is_one_line_per_pair(bag: Path) -> No
     assert sum(len(r.pairs) for r in results) == len(NOISE) * (
         FRAMES - 1
     )  # tepe is scored regardless
+
+
+def test_statuses_carry_the_residual_and_the_summarizer_stores_it(
+    bag: Path, tmp_path: Path
+) -> None:
+    results = run(bag, drive_motion)
+    config = {m: disparity_topic(m) for m in NOISE}
+    core = SummarizerCore(SummarizerConfig(tmp_path / "live", every_n=2), {"run": "live"})
+    for result in results:
+        scores, motion = {}, {}
+        for status in result_statuses(result, config):
+            scores[status.name] = scores_from_status(status.values)
+            found = motion_from_status(status.values)
+            assert (found is None) == (status.name not in result.motion_pairs)
+            if found is not None:
+                previous, sums = found
+                assert previous == result.pair_previous
+                assert np.array_equal(sums.sums, result.motion_pairs[status.name].sums)
+                value = dict(status.values)[f"{MOTION_PREFIX}gtfree:all/mean_abs"]
+                assert float(value) == sums.summary("all")["mean_abs"]
+                motion[status.name] = found
+        core.add(result.stamp, scores, None, None, motion)
+    summary = core.finish()
+    assert summary is not None
+    assert summary.egomotion
+    with ResultsStore.open(tmp_path / "live") as store:
+        stored = store.motion_pairs(store.sequences()[0])
+    assert stored is not None
+    for method in NOISE:
+        pairs, pooled_sums = pooled(results, method)
+        assert stored[method][0] == pairs
+        assert np.array_equal(stored[method][1].sums, pooled_sums.sums)
+    entry = summary.to_dict()["sequences"][0]["egomotion"]["truth"]
+    assert entry["pairs"] == FRAMES - 1
+    assert set(entry["criteria"]) == {"gtfree:all", "gtfree:textured", "gtfree:textureless"}
