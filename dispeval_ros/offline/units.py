@@ -21,7 +21,7 @@ import dataclasses
 import os
 import traceback
 from collections import Counter, OrderedDict, deque
-from collections.abc import Generator, Iterable, Iterator
+from collections.abc import Collection, Generator, Iterable, Iterator
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +48,7 @@ from dispeval_ros.offline.threads import (  # noqa: F401 (executors and tests im
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.join import FrameSet, JoinEvent
+from dispeval_ros.stream.pairs import MotionPair
 
 DEFAULT_SLICE_NS = 5_000_000_000
 AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)
@@ -376,6 +377,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 
     def collect(frame_set: FrameSet[Any, Any], frame: FrameResult, keep: bool = True) -> None:
         core.pair(frame)  # in the join's order, kept or not (see stream/pairs.py)
+        result.motion.extend(motion_records(unit.sequence, frame.motion_pairs, result.kept))
         if not keep:
             return
         if frame.pair_previous is not None:
@@ -383,10 +385,6 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             result.pairs.extend(
                 FramePair(unit.sequence, frame.stamp, method, previous, scores)
                 for method, scores in frame.pairs.items()
-            )
-            result.motion.extend(
-                FrameMotion(unit.sequence, frame.stamp, method, previous, sums)
-                for method, sums in frame.motion_pairs.items()
             )
         result.timing.extend(
             FrameTiming(unit.sequence, frame.stamp, method, frame.sent[method], arrival)
@@ -451,6 +449,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     handle(core.flush())
     while scoring:
         collect_oldest()
+    tail = core.finish_pairs()  # ego-motion pairs that waited for /tf to the end
+    if tail is not None:
+        result.motion.extend(motion_records(unit.sequence, tail.motion, result.kept))
+        result.problems.extend(Problem(unit.sequence, None, m, text) for m, text in tail.problems)
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
     result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")
@@ -475,6 +477,14 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             failed=failed[method],
         )
     return result
+
+
+def motion_records(
+    sequence: str, pairs: Iterable[MotionPair], kept: Collection[int]
+) -> list[FrameMotion]:
+    """The ego-motion pairs whose later frame a unit keeps, as records to store."""
+    return [FrameMotion(sequence, p.stamp, p.method, p.previous, p.sums) for p in pairs
+            if p.stamp in kept]  # fmt: skip
 
 
 def unmatched_hints(

@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.core import Camera, Partition, Reference, Scores
-from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.gtfree import ImagePair, joined
 from dispeval_ros.core.projection import CloudFilter, CloudProjection
 from dispeval_ros.core.temporal import PairScores
@@ -49,7 +48,13 @@ from dispeval_ros.stream.config import (
     CoreConfig,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
-from dispeval_ros.stream.pairs import MethodPairInput, PairInput, camera_view
+from dispeval_ros.stream.pairs import (
+    MethodPairInput,
+    MotionPair,
+    PairInput,
+    PairOutcome,
+    camera_view,
+)
 
 __all__ = [  # the configuration's names stay importable from here (stream.config defines them)
     "CAMERA_INFO_TYPE",
@@ -91,8 +96,9 @@ class FrameResult:
     """With ``temporal``, after :meth:`EvaluationCore.pair`: per method, the pair ending here
     (its earlier frame's stamp: :attr:`pair_previous`)."""
     pair_previous: int | None = None
-    motion_pairs: dict[str, TemporalSums] = field(default_factory=dict)
-    """With ``egomotion``: per method, the ego-motion residual of that pair."""
+    motion_pairs: list[MotionPair] = field(default_factory=list)
+    """With ``egomotion``: the ego-motion residuals scored with this frame (of its pair, and
+    of earlier pairs that waited for the motion source: each names its stamps)."""
     pair_input: PairInput | None = None  # for the pair stage, dropped once it ran
     prepared: dict[str, MethodPairInput] = field(default_factory=dict, repr=False)
 
@@ -321,10 +327,14 @@ class EvaluationCore:
         outcome = self.pairs.add(result.pair_input or PairInput(result.stamp, None, {}))
         result.pair_input = None
         result.pairs.update(outcome.scores)
-        result.motion_pairs.update(outcome.motion)
+        result.motion_pairs.extend(outcome.motion)
         result.pair_previous = outcome.previous
         result.problems.extend(outcome.problems)
         return result
+
+    def finish_pairs(self) -> PairOutcome | None:
+        """End of stream: the pairs still waiting for the motion source (None: no stage)."""
+        return None if self.pairs is None else self.pairs.finish()
 
     def _score_method(
         self,

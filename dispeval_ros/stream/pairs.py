@@ -20,11 +20,15 @@ With ``egomotion`` the same pairs also give each method's ego-motion residual
 (:func:`~dispeval_ros.core.egomotion.egomotion_residual`: ground-truth-free temporal noise, on
 the ``gtfree:`` criteria of the earlier frame's images), the camera's motion between the two
 stamps taken from :attr:`PairStage.motion`; a pair whose motion cannot be looked up is one
-problem line. Nothing here knows of ROS or files.
+problem line. A pair waits (up to :data:`MOTION_WAIT` pairs) until :attr:`PairStage.ready`
+says the motion source holds its later stamp (``/tf`` is often logged after the frame), and
+:meth:`PairStage.finish` scores those still waiting at the end of a stream. Nothing here
+knows of ROS or files.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -54,6 +58,9 @@ PAIR_GAP_RULE = (
     "frame or a pause ends the run of pairs)"
 )
 """The pair gap's meaning, as every front end's help says it."""
+MOTION_WAIT = 8
+"""Ego-motion pairs kept waiting for the motion source at most (then the oldest is scored
+with what it holds): bounds memory when ``/tf`` lags or never comes."""
 Motion = Callable[[str, int, int], np.ndarray]
 """``motion(camera_frame, t0_ns, t1_ns)``: the pose of the camera at ``t1`` in its frame at
 ``t0`` (4×4; it maps points of the camera frame at ``t1`` into the frame at ``t0``), the
@@ -90,14 +97,25 @@ class PairInput:
 
 
 @dataclass(frozen=True)
+class MotionPair:
+    """One method's ego-motion residual of the pair (``previous``, ``stamp``)."""
+
+    stamp: int
+    previous: int
+    method: str
+    sums: TemporalSums
+
+
+@dataclass(frozen=True)
 class PairOutcome:
     """The pairs ending at one frame: method → scores, the previous frame's stamp, problems."""
 
     previous: int | None
     scores: dict[str, PairScores]
     problems: list[tuple[str | None, str]]
-    motion: dict[str, TemporalSums] = field(default_factory=dict)
-    """Per method, the ego-motion residual's sums of the pair (``egomotion``)."""
+    motion: list[MotionPair] = field(default_factory=list)
+    """The ego-motion residuals scored now (``egomotion``): of this pair, and of earlier ones
+    that waited for the motion source."""
 
 
 def no_pair(method: str, previous: int, stamp: int, reason: str) -> str:
@@ -126,7 +144,11 @@ class PairStage:
         self.motion: Motion | None = None
         """Where the ego-motion residual takes the camera's motion from (the front end sets
         it: the stream's /tf history, or a test's exact motion)."""
+        self.ready: Callable[[int, str], bool] | None = None
+        """``ready(stamp_ns, camera_frame)``: whether :attr:`motion` can already answer up to
+        that stamp (None: always; ``TransformHistory.ready``)."""
         self._previous: PairInput | None = None
+        self._waiting: deque[tuple[PairInput, PairInput, list[str]]] = deque()
 
     def prepare(
         self,
@@ -157,13 +179,13 @@ class PairStage:
         """The pairs (previous frame, ``frame``) of every method; ``frame`` becomes the previous."""
         previous, self._previous = self._previous, frame
         if previous is None:
-            return PairOutcome(None, {}, [])
+            return PairOutcome(None, {}, [], self._resolve([]))
         stamp, before = frame.stamp, previous.stamp
         problems: list[tuple[str | None, str]] = []
         if stamp <= before:
             reason = f"its stamp is not after the previous frame's ({before}): no pair with it"
             problems.append((None, f"frame at {stamp}: {reason}"))
-            return PairOutcome(before, {}, problems)
+            return PairOutcome(before, {}, problems, self._resolve(problems))
         gap = stamp - before
         for method in previous.estimates:
             if method not in frame.estimates:
@@ -178,10 +200,30 @@ class PairStage:
                 problems.append((method, no_pair(method, before, stamp, reason)))
         pairable = [m for m in previous.estimates if m in frame.estimates]
         if gap > self.gap_ns or not pairable:
-            return PairOutcome(before, {}, problems)
+            return PairOutcome(before, {}, problems, self._resolve(problems))
         scores = self._tepe(previous, frame, pairable, problems)
-        motion = self._egomotion(previous, frame, pairable, problems)
-        return PairOutcome(before, scores, problems, motion)
+        if self.egomotion is not None:
+            self._waiting.append((previous, frame, pairable))
+        return PairOutcome(before, scores, problems, self._resolve(problems))
+
+    def finish(self) -> PairOutcome:
+        """End of stream: the ego-motion pairs still waiting, scored with what the source holds."""
+        problems: list[tuple[str | None, str]] = []
+        return PairOutcome(None, {}, problems, self._resolve(problems, final=True))
+
+    def _resolve(
+        self, problems: list[tuple[str | None, str]], final: bool = False
+    ) -> list[MotionPair]:
+        """Score the waiting ego-motion pairs whose motion is known (all of them if ``final``)."""
+        done: list[MotionPair] = []
+        while self._waiting:
+            previous, frame, methods = self._waiting[0]
+            ready = self.ready is None or self.ready(frame.stamp, previous.camera_frame)
+            if not (ready or final or len(self._waiting) > MOTION_WAIT):
+                break
+            self._waiting.popleft()
+            done += self._egomotion(previous, frame, methods, problems)
+        return done
 
     def _tepe(
         self,
@@ -216,9 +258,9 @@ class PairStage:
         frame: PairInput,
         methods: list[str],
         problems: list[tuple[str | None, str]],
-    ) -> dict[str, TemporalSums]:
+    ) -> list[MotionPair]:
         """The ego-motion residual of ``methods``; an unknown motion is one line for all."""
-        sums: dict[str, TemporalSums] = {}
+        sums: list[MotionPair] = []
         if self.egomotion is None:
             return sums
         before, stamp = previous.stamp, frame.stamp
@@ -239,9 +281,10 @@ class PairStage:
             if first is None or second is None:
                 continue
             try:
-                sums[method] = egomotion_residual(
+                residual = egomotion_residual(
                     first, second, moved, previous.camera, previous.partition, self.egomotion
                 )
+                sums.append(MotionPair(stamp, before, method, residual))
             except DispevalError as error:
                 problems.append((method, f"{method}: {where}: {error}"))
         return sums

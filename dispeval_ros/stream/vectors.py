@@ -302,6 +302,9 @@ def result_statuses(
 ) -> list[StatusRecord]:
     """The status of each method scored on a frame, with its latency and its pair, if any."""
     previous = result.pair_previous
+    motion = {
+        p.method: (p.previous, p.sums) for p in result.motion_pairs if p.stamp == result.stamp
+    }
     return [
         scores_status(
             method,
@@ -313,9 +316,7 @@ def result_statuses(
             None
             if previous is None or method not in result.pairs
             else (previous, result.pairs[method]),
-            None
-            if previous is None or method not in result.motion_pairs
-            else (previous, result.motion_pairs[method]),
+            motion.get(method),
         )
         for method, scores in result.scores.items()
     ]
