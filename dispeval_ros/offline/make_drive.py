@@ -145,7 +145,7 @@ def write_drive(
     if out.exists():
         raise InputError(f"{out}: exists; remove it or choose another path")
     try:
-        return _write(out, frames, width, height, fps, seed, traffic, progress)
+        return _write(out, (frames, width, height, fps, seed), traffic, progress)
     except BaseException:
         shutil.rmtree(out, ignore_errors=True)
         raise
@@ -153,14 +153,11 @@ def write_drive(
 
 def _write(
     out: Path,
-    frames: int,
-    width: int,
-    height: int,
-    fps: float,
-    seed: int,
+    drive_options: tuple[int, int, int, float, int],
     traffic: bool,
     progress: Callable[[int], None] | None,
 ) -> dict[str, object]:
+    frames, width, height, fps, seed = drive_options
     model = LidarModel()
     world, rig = driving_setup(width, height, fps, seed)
     if not traffic:
