@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -207,6 +209,29 @@ def test_the_sums_equal_a_numpy_recomputation(
             assert all(one[d] > 100 for d in drops), one
 
 
+def test_moving_the_scan_by_the_motion_beats_its_inverse_and_no_motion(
+    drive: Path, estimates: dict[str, Path]
+) -> None:
+    """The convention, as docs/method.md quotes it: 0.45–0.6 of either alternative."""
+    from dispeval_ros.core.lidar_drift import DriftOptions, coded_estimate, lidar_drift
+
+    _, _, camera = geometry(drive)
+    frames = frames_of(drive)
+    poses = camera_poses(open_drive(drive))
+    options = DriftOptions(missing="ignore")
+    for t in (0, 3, 6, 9):
+        scans = [numpy_scan(drive, frames[i])[0] for i in (t, t + 1)]
+        maps = [coded_estimate(np.load(estimates["sgbm"] / f"{frames[i]}.npy"), "ignore")
+                for i in (t, t + 1)]  # fmt: skip
+        motion = camera_motion(poses[t], poses[t + 1])
+        mean = {
+            name: lidar_drift(*scans, *maps, moved, camera, options=options).summary("all")["mean"]
+            for name, moved in (("right", motion), ("inverse", np.linalg.inv(motion)),
+                                ("none", np.eye(4)))
+        }  # fmt: skip
+        assert 0.4 < mean["right"] / min(mean["inverse"], mean["none"]) < 0.65, mean
+
+
 def test_the_text_table_is_labelled_and_shows_the_json_values(
     capsys: pytest.CaptureFixture[str], drive: Path, estimates: dict[str, Path]
 ) -> None:
@@ -246,3 +271,38 @@ def test_without_egomotion_there_is_no_drift(
     assert code == 0
     assert "lidar_drift" not in out
     assert DRIVE.endswith(drive.name)
+
+
+def test_the_readme_states_the_drift_numbers(
+    capsys: pytest.CaptureFixture[str], shared_data: Path, drive: Path, tmp_path: Path
+) -> None:
+    """The README's drift sentences, on the maps its example writes (its table is checked by
+    test_eval_egomotion's README test)."""
+    from test_readme import README
+
+    code = ego.readme_example()[0]
+    (tmp_path / "kitti-raw-drive-0048").symlink_to(shared_data / "kitti-raw-drive-0048")
+    environment = {"PYTHONPATH": str(ego.CLONE), "PATH": "/usr/bin:/bin"}
+    subprocess.run([sys.executable, "-c", code], cwd=tmp_path, check=True, env=environment)
+    estimates = {name: tmp_path / name for name in METHODS}
+    text = README.read_text(encoding="utf-8")
+    text = " ".join(text[text.index("<!-- /egomotion-example -->") :].split())
+    runs = {
+        p: drift_json(capsys, drive, estimates, "--missing", p) for p in ("interpolate", "ignore")
+    }
+    values = {
+        policy: {m: run["methods"][m]["criteria"] for m in METHODS} for policy, run in runs.items()
+    }
+    sgbm, bm = (values["interpolate"][m]["drift:all"] for m in METHODS)
+    assert sgbm["n_drift"] == bm["n_drift"]
+    assert f"{int(sgbm['n_drift'])} of the {int(sgbm['n'])} points counted for both methods" in text
+    assert sgbm["n"] == sgbm["n_drift"] + sgbm["n_outside"] + sgbm["n_hidden"]
+    ignored = [values["ignore"][m]["drift:all"] for m in METHODS]
+    assert (
+        f"(SGBM {ignored[0]['mean']:.2f} px over {ignored[0]['counted']:.1f} % of the points, "
+        f"BM {ignored[1]['mean']:.2f} px over {ignored[1]['counted']:.1f} %)" in text
+    )
+    near, mid, far = (values["interpolate"]["sgbm"][f"drift:{c}"]["mean"]
+                      for c in ("0-10m", "10-30m", "30+m"))  # fmt: skip
+    assert f"SGBM drifts {near:.2f} px below 10 m, {mid:.2f} px at 10–30 m, {far:.2f} px" in text
+    assert sgbm["mean"] < bm["mean"]
