@@ -67,13 +67,27 @@ def test_exact_maps_drift_zero_and_the_expected_disparity_is_f_b_over_the_new_de
     assert one["n_outside"] == 61 * 81 - 31 * 41
     assert one["mean"] == one["rms"] == one["bias_drift"] == 0.0
     np.testing.assert_array_equal(sums.maps[0] == 0, inside())
-    # an estimate 0.3 px above 5 px at t + k is 0.3 px of drift at every counted point
-    sums = drift((scan, target_scan), (scan, target_scan + 0.3), motion, camera)
+    # an estimate 0.5 px above 5 px at t + k is 0.5 px of drift at every counted point (exact
+    # in binary): not bad_0.5, which counts |c| > 0.5 as every bad-X does
+    sums = drift((scan, target_scan), (scan, target_scan + 0.5), motion, camera)
     one = sums.summary("all")
-    assert one["mean"] == pytest.approx(0.3, abs=1e-6)
-    assert one["bias_drift"] == pytest.approx(0.3, abs=1e-6)
+    assert one["mean"] == one["bias_drift"] == 0.5
     assert one["bad_0.5"] == 0.0
-    np.testing.assert_allclose(sums.maps[1][inside()], 0.3, atol=1e-6)
+    np.testing.assert_array_equal(sums.maps[1][inside()], 0.5)
+    sums = drift((scan, target_scan), (scan, target_scan + 0.75), motion, camera)
+    assert sums.summary("all")["bad_0.5"] == 100.0
+
+
+def test_a_landing_between_the_last_column_and_the_edge_is_outside() -> None:
+    """Moved half a pixel right (the camera 0.1 m left): the last column lands at W − 0.5,
+    where the bilinear support would leave the image."""
+    camera, motion, scan = wall()
+    motion[:3, 3] = (-0.5 * Z0 / F, 0.0, 0.0)
+    sums = drift((scan, scan), (scan, scan), motion, camera)
+    one = sums.summary("all")
+    assert (one["n_drift"], one["n_outside"]) == (61 * 80, 61)
+    np.testing.assert_array_equal(sums.maps[0][:, -1], STATUS_NAMES.index("outside"))
+    assert one["mean"] == 0.0
 
 
 @pytest.mark.parametrize("bias", [1.0, -0.7])
@@ -108,8 +122,9 @@ def test_per_frame_noise_drifts_by_its_expected_value() -> None:
 def test_each_drop_reason_is_counted_on_the_points_it_applies_to() -> None:
     camera, motion, scan = wall()
     target_scan = np.full(scan.shape, D1, np.float32)
-    near = 30, 40  # the centre pixel lands on itself
+    near = 31, 43  # odd: the landings (even) 3 px away are the window's edge
     target_scan[near] = 1.2 * D1  # a point of scan t + k nearer by 1/1.2 − 1 = −17 %
+    target_scan[10, 10] = 1.05 * D1  # nearer by 5 % only: within the 10 % gap, hides nothing
     estimate, target = scan.copy(), np.full(scan.shape, D1, np.float32)
     estimate[20, 30] = np.nan  # a hole at t (lands at (10, 20))
     target[40, 50] = 0  # a hole at t + k: the landing of (35, 45)
@@ -118,19 +133,19 @@ def test_each_drop_reason_is_counted_on_the_points_it_applies_to() -> None:
     status = sums.maps[0]
     rows, columns = np.mgrid[0:61, 0:81]
     hidden = inside() & (abs(2 * rows - 30 - near[0]) <= 3) & (abs(2 * columns - 40 - near[1]) <= 3)
-    assert hidden.sum() == 3 * 3  # rounded landings within the 7×7 window: 3 rows, 3 columns
+    assert hidden.sum() == 4 * 4  # landings within the 7×7 window: rows 29–32, columns 40–43
     np.testing.assert_array_equal(status == STATUS_NAMES.index("hidden"), hidden)
     assert status[20, 30] == STATUS_NAMES.index("missing")
     assert status[35, 45] == STATUS_NAMES.index("missing_target")
     one = sums.summary("all")
-    assert (one["n_hidden"], one["n_missing"], one["n_missing_target"]) == (9, 1, 1)
-    assert one["n_drift"] == 31 * 41 - 11
+    assert (one["n_hidden"], one["n_missing"], one["n_missing_target"]) == (16, 1, 1)
+    assert one["n_drift"] == 31 * 41 - 18
     assert one["mean"] == pytest.approx(0.0, abs=1e-6)
     # thesis: the holes are scored as 0 — the hole at t drifts by +d, the one at t + k by −2d
     thesis = drift(scans, (estimate, target), motion, camera, "thesis")
     np.testing.assert_allclose(thesis.maps[1][20, 30], D0, atol=1e-6)
     np.testing.assert_allclose(thesis.maps[1][35, 45], -D1, atol=1e-6)
-    assert thesis.summary("all")["n_drift"] == 31 * 41 - 9
+    assert thesis.summary("all")["n_drift"] == 31 * 41 - 16
     # the visibility test off: nothing hidden
     off = drift(scans, (estimate, target), motion, camera, "ignore", visibility=CloudFilter(0))
     assert off.summary("all")["n_hidden"] == 0
@@ -176,3 +191,17 @@ def test_bad_input_is_one_clear_error() -> None:
     )
     with pytest.raises(ConfigurationError, match="cannot pool drift sums"):
         _ = base + other
+
+
+def test_the_estimate_at_t_plus_k_is_read_bilinearly() -> None:
+    """Moved half a pixel right and down over a target estimate affine in the image (which a
+    bilinear read gives exactly): ``c = 0.01·(x + ½) + 0.02·(y + ½)``."""
+    camera, motion, scan = wall()
+    motion[:3, 3] = (-0.5 * Z0 / F, -0.5 * Z0 / F, 0.0)
+    rows, columns = np.mgrid[0:61, 0:81]
+    target = (D0 + 0.01 * columns + 0.02 * rows).astype(np.float32)
+    sums = drift((scan, scan), (scan, target), motion, camera)
+    status, change = sums.maps
+    assert sums.summary("all")["n_drift"] == 60 * 80
+    expected = 0.01 * (columns + 0.5) + 0.02 * (rows + 0.5)
+    np.testing.assert_allclose(change[status == 0], expected[status == 0], atol=1e-5)
