@@ -180,7 +180,8 @@ def lidar_drift(
     if min(shape) < 2:
         raise ShapeMismatchError(f"the maps are {crit.size_text(shape)}: at least 2×2 is needed")
     if partition is None:
-        cells = np.where(maps[0] > 0, 0, -1).astype(np.int32)
+        order = np.flatnonzero(maps[0] > 0)
+        offsets = np.array([0, order.size], np.int64)
         membership = np.ones((1, 1), bool)
         names: tuple[str, ...] = ("all",)
     else:
@@ -189,7 +190,7 @@ def lidar_drift(
                 f"the criteria are {crit.size_text(partition.shape)} but the scan at t is "
                 f"{crit.size_text(shape)}"
             )
-        cells = np.ascontiguousarray(partition.cells, dtype=np.int32)
+        order, offsets = partition.order, partition.offsets
         membership, names = partition.membership, partition.criteria
     rt = np.ascontiguousarray(invert_rigid(rigid_motion(motion))[:3])
     thresholds = np.asarray(chosen.thresholds, dtype=np.float64)
@@ -202,7 +203,8 @@ def lidar_drift(
         maps[1],
         maps[2],
         maps[3],
-        cells,
+        np.ascontiguousarray(order, dtype=np.int64),
+        np.ascontiguousarray(offsets, dtype=np.int64),
         rt,
         camera.geometry(),
         visibility.window,
@@ -231,7 +233,8 @@ def _drift(
     gt_next: np.ndarray,
     est: np.ndarray,
     est_next: np.ndarray,
-    cells: np.ndarray,
+    order: np.ndarray,
+    offsets: np.ndarray,
     rt: np.ndarray,
     geo: np.ndarray,
     window: int,
@@ -242,18 +245,22 @@ def _drift(
     status: np.ndarray,
     change: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Every point of ``gt`` moved, tested and, when counted, its drift summed (the module)."""
+    """Every point of ``gt`` moved, tested and, when counted, its drift summed (the module).
+
+    The points are ``order[offsets[c]:offsets[c + 1]]`` (flat pixel indices) for cell ``c``.
+    """
     height, width = gt.shape
     f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
     half = window // 2
     keep = status.shape[0] > 0
-    for y in range(height):
-        for x in range(width):
-            cell = cells[y, x]
+    for cell in range(offsets.size - 1):
+        row = sums[cell]
+        for point in range(offsets[cell], offsets[cell + 1]):
+            y = order[point] // width
+            x = order[point] - y * width
             d = np.float64(gt[y, x])
-            if cell < 0 or not d > 0.0:
+            if not d > 0.0:
                 continue
-            row = sums[cell]
             row[0] += 1.0
             code = 1  # behind
             c = 0.0
@@ -314,14 +321,21 @@ def _visible(
     window: int,
     gap: float,
 ) -> int:  # pragma: no cover - compiled
-    """0 when no point of the next scan near the landing is nearer by more than ``gap``, else 3."""
+    """0 when no point of the next scan near the landing is nearer by more than ``gap``, else 3.
+
+    The nearest point is the largest disparity: one division (``f·B/s`` is monotone in ``s``
+    in floating point too, so this is the test of every point of the window, bit for bit).
+    """
     if window < 1:
         return 0
     height, width = gt_next.shape
     col, line = math.floor(u + 0.5), math.floor(v + 0.5)
+    largest = np.float32(0.0)
     for r in range(max(line - half, 0), min(line + half + 1, height)):
         for k in range(max(col - half, 0), min(col + half + 1, width)):
-            s = np.float64(gt_next[r, k]) + doffs
-            if gt_next[r, k] > 0.0 and s > 0.0 and (fb / s) * (1.0 + gap) < qz:
-                return 3
+            if gt_next[r, k] > largest:  # noqa: PLR1730 (max() keeps a NaN second argument)
+                largest = gt_next[r, k]
+    s = np.float64(largest) + doffs
+    if largest > 0.0 and s > 0.0 and (fb / s) * (1.0 + gap) < qz:
+        return 3
     return 0
