@@ -333,7 +333,7 @@ def _visible(
     largest = np.float32(0.0)
     for r in range(max(line - half, 0), min(line + half + 1, height)):
         for k in range(max(col - half, 0), min(col + half + 1, width)):
-            if gt_next[r, k] > largest:  # noqa: PLR1730 (max() keeps a NaN second argument)
+            if gt_next[r, k] > largest:  # noqa: PLR1730 (explicit: a NaN is no point)
                 largest = gt_next[r, k]
     s = np.float64(largest) + doffs
     if largest > 0.0 and s > 0.0 and (fb / s) * (1.0 + gap) < qz:

@@ -125,6 +125,7 @@ def test_each_drop_reason_is_counted_on_the_points_it_applies_to() -> None:
     near = 31, 43  # odd: the landings (even) 3 px away are the window's edge
     target_scan[near] = 1.2 * D1  # a point of scan t + k nearer by 1/1.2 − 1 = −17 %
     target_scan[10, 10] = 1.05 * D1  # nearer by 5 % only: within the 10 % gap, hides nothing
+    target_scan[near[0], near[1] - 1] = np.nan  # not a point: the near one still hides
     estimate, target = scan.copy(), np.full(scan.shape, D1, np.float32)
     estimate[20, 30] = np.nan  # a hole at t (lands at (10, 20))
     target[40, 50] = 0  # a hole at t + k: the landing of (35, 45)
