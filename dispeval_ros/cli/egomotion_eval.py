@@ -91,7 +91,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="with --scene of a KITTI raw drive: also score each method's ego-motion residual "
         "(temporal noise without GT: frame t's estimate moved by the oxts motion into frame "
-        "t + k, compared with the estimate there; docs/method.md)",
+        "t + k, compared with the estimate there) and its LiDAR drift between scans (the "
+        "change of its error against scan t's points moved into frame t + k; docs/method.md)",
     )
     parser.add_argument(
         "--egomotion-step",
@@ -261,10 +262,11 @@ class EgoResult:
                     one["mean"], one["rms"], *(one[b] for b in bad), one["bias_drift"],
                     *(int(one[d]) for d in DRIFT_DROPPED),
                 ])  # fmt: skip
+        visibility = self.drift_options.visibility
         title = wrapped(
             f"LiDAR drift between scans ({DRIFT_LABEL}; missing estimates: "
-            f"{self.drift_options.missing}; hidden: a point of scan t + k within "
-            f"{self.drift_options.visibility} (window, relative gap) nearer)"
+            f"{self.drift_options.missing}; hidden: a point of scan t + k nearer by more than "
+            f"{100 * visibility.gap:g} % within {visibility.window}×{visibility.window} px)"
         )
         return (
             title + "\n" + (fitted_tables(header, rows, keep=2) if rows else "no pair was scored")
