@@ -41,6 +41,12 @@ __getattr__, __dir__ = lazy_exports(
             "GroundTruthFree",
             "ImagePair",
         ),
+        "dispeval_ros.core.lidar_drift": (
+            "DriftOptions",
+            "DriftSums",
+            "coded_estimate",
+            "lidar_drift",
+        ),
         "dispeval_ros.core.measures": (
             "DEFAULT_MEASURES",
             "HIGHER_IS_BETTER",
@@ -108,6 +114,7 @@ if TYPE_CHECKING:
     )
     from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, POLICIES, Evaluator, Reference
     from dispeval_ros.core.gtfree import GroundTruthFree, ImagePair
+    from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, coded_estimate, lidar_drift
     from dispeval_ros.core.measures import (
         DEFAULT_MEASURES,
         HIGHER_IS_BETTER,
@@ -155,6 +162,8 @@ __all__ = [
     "CloudFilter",
     "CloudProjection",
     "CriterionSet",
+    "DriftOptions",
+    "DriftSums",
     "EgoMotionOptions",
     "Evaluator",
     "FlickerWindow",
@@ -180,6 +189,7 @@ __all__ = [
     "VisibilityOptions",
     "astar_groups",
     "build_partition",
+    "coded_estimate",
     "dominates",
     "egomotion_residual",
     "evaluate_frame",
@@ -188,6 +198,7 @@ __all__ = [
     "front_reduction",
     "get_protocol",
     "interpretation",
+    "lidar_drift",
     "measure_consistency",
     "middlebury_ranks",
     "pareto_front",
