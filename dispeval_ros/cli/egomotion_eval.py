@@ -29,12 +29,13 @@ import numpy as np
 
 from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, wrapped
+from dispeval_ros.cli.summary import EGOMOTION_LABEL as LABEL
+from dispeval_ros.cli.summary import EGOMOTION_MASKED as MASKED
 from dispeval_ros.cli.summary import fitted_tables
 from dispeval_ros.cli.temporal_eval import Estimates, Runs, frame_runs
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.egomotion import (
-    STATUS_NAMES,
     EgoMotionOptions,
     MotionFrame,
     PinholeCamera,
@@ -60,11 +61,6 @@ from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS, GT_FREE_PREFIX
 from dispeval_ros.errors import ConfigurationError, DispevalError
 
 OPTION = "--egomotion"
-LABEL = (
-    "ground-truth-free: temporal noise of the estimate moved by the camera's motion, no GT; "
-    "not bias (a constant offset is fitted and removed per pair)"
-)
-"""What every ``--egomotion`` output says it is (the text title and the JSON ``label``)."""
 POSES = "KITTI raw oxts (convertOxtsToPose) carried to the left camera by calib_imu_to_velo"
 UNITS = {"mean_abs": "px", "mean": "px", "rms": "px", "mean_abs_z": "m", "rms_z": "m"}
 """The units of the values (``bad_X``: % of the counted pixels)."""
@@ -73,8 +69,6 @@ DRIFT_UNITS = {
     "mean_error": "px",
 }  # fmt: skip
 """The units of the drift's values (``bad_X``: % of the counted points)."""
-MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
-"""The mask counts of the table, in the order the masks apply."""
 DRIFT_LABEL = (
     "temporal noise against the LiDAR scans: the change of each point's error from scan t to "
     "scan t + k along the motion (static world); a constant bias drifts 0; not accuracy"
