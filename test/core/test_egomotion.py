@@ -491,6 +491,28 @@ def test_flicker_is_the_per_pixel_sample_spread():
     assert still["n_residual"] > 0
 
 
+@pytest.mark.parametrize("outlier", [0.0, 50.0])
+def test_flicker_of_a_long_window_far_from_zero_is_np_std(outlier):
+    """Disparities near 5000 px with a spread of 1e-3 px (plain sums of squares lose it all).
+
+    With ``outlier``, the first frame (the sums' shift) is 50 px off the others.
+    """
+    rng = np.random.default_rng(11)
+    base = 5000.0 + rng.random((12, 16)) * 10.0
+    stack = (base + rng.normal(0, 1e-3, (40, *base.shape))).astype(np.float32)
+    stack[0] += np.float32(outlier)
+    camera = Camera(f=1000.0, baseline=0.5)
+    window = FlickerWindow(camera, EgoMotionOptions(edge_gap=1e9))
+    for estimate in stack:
+        window.add(prepare_frame(estimate))
+    status, spread, spread_z = window.sums(keep_maps=True).maps
+    assert (status == 0).all()
+    values = stack.astype(np.float64)
+    # the maps are float32: 6e-8 relative, the rest of the error far below
+    np.testing.assert_allclose(spread, np.std(values, axis=0, ddof=1), rtol=3e-7)
+    np.testing.assert_allclose(spread_z, np.std(camera.fb / values, axis=0, ddof=1), rtol=3e-7)
+
+
 def test_flicker_masks_edges_and_changing_intensity():
     frame = drive_frame(0)[0]
     images = [frame.left.copy() for _ in range(3)]
