@@ -458,7 +458,8 @@ def flicker_spread(
     valid = np.empty(width, np.bool_)
     low = np.empty(width, np.int32)
     high = np.empty(width, np.int32)
-    n = np.float64(frames)
+    per = 1.0 / frames  # reciprocals: multiplications in the per-pixel loop
+    per_dof = 1.0 / (frames - 1)
     for y in range(height):
         row = disparities[0][y]
         for x in range(width):
@@ -497,13 +498,16 @@ def flicker_spread(
         for x in range(width):
             complete = valid[x]
             moving = np.float64(high[x] - low[x]) > photometric
-            spread = np.sqrt(max(square[x] - total[x] * total[x] / n, 0.0) / (n - 1.0))
-            spread_z = np.sqrt(max(square_z[x] - total_z[x] * total_z[x] / n, 0.0) / (n - 1.0))
-            mean_row[x] = np.float32(first[x] + total[x] / n) if complete else np.float32(np.nan)
+            # float32 square roots of the float64 variances: the maps are float32 anyway
+            spread = np.sqrt(np.float32(max(square[x] - total[x] * total[x] * per, 0.0) * per_dof))
+            spread_z = np.sqrt(
+                np.float32(max(square_z[x] - total_z[x] * total_z[x] * per, 0.0) * per_dof)
+            )
+            mean_row[x] = np.float32(first[x] + total[x] * per) if complete else np.float32(np.nan)
             status_row[x] = MISSING if not complete else (MOVING if moving else COUNTED)
             counted = complete and not moving
-            r_row[x] = spread if counted else np.nan
-            rz_row[x] = spread_z if counted else np.nan
+            r_row[x] = spread if counted else np.float32(np.nan)
+            rz_row[x] = spread_z if counted else np.float32(np.nan)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
