@@ -86,10 +86,12 @@ def _landing(
         ws[x] = w
         predicted[x] = fb * s * inverse - doffs
         lands[x] = ok
-        wx[x] = xp - x0
-        wy[x] = yp - y0
-        corner[x] = y0 * width + x0
-        near[x] = int(yp + 0.5) * width + int(xp + 0.5)
+        fx = xp - x0
+        fy = yp - y0
+        wx[x] = fx
+        wy[x] = fy
+        corner[x] = y0 * width + x0  # the nearest pixel: the corner, or a step right or down
+        near[x] = y0 * width + x0 + (fx >= 0.5) + width * (fy >= 0.5)
 
 
 Row = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -121,13 +123,14 @@ def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - c
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sample(
-    flat: np.ndarray, scratch: Row, width: int, out: np.ndarray
+    flat: np.ndarray, scratch: Row, width: int, quad: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled
     """The bilinear value of ``flat`` (an image as one row) at each landing of the row.
 
-    :func:`_bilinear`'s operations on the four support values, loaded and blended in one
-    scalar pass (four stores per pixel fewer than gathering first). Unsigned indices: numba
-    then adds no wrap-around of negative ones to each load.
+    The four support values are loaded into ``quad`` (4 × width, ``flat``'s type: bare loads,
+    no conversion), then blended in one vectorised pass with :func:`_bilinear`'s operations;
+    scalar conversions in the loading loop cost more than the second pass. Unsigned indices:
+    numba then adds no wrap-around of negative ones to each load.
     """
     values, index, _ = scratch
     wx, wy, corner = values[WX], values[WY], index[CORNER]
@@ -135,8 +138,13 @@ def _sample(
     below = np.uint64(width)
     for x in range(corner.shape[0]):
         i = np.uint64(corner[x])
-        a, b = np.float64(flat[i]), np.float64(flat[i + one])
-        c, d = np.float64(flat[i + below]), np.float64(flat[i + below + one])
+        quad[0, x] = flat[i]
+        quad[1, x] = flat[i + one]
+        quad[2, x] = flat[i + below]
+        quad[3, x] = flat[i + below + one]
+    for x in range(corner.shape[0]):
+        a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
+        c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
         top = a + wx[x] * (b - a)
         out[x] = top + wy[x] * (c + wx[x] * (d - c) - top)
 
@@ -176,11 +184,12 @@ def motion_splat(
     src_image, tgt_image = images
     photo = src_image.shape[0] == height and tgt_image.shape[0] == height
     tgt_flat = tgt_image.reshape(-1)
+    quad = np.empty((4, width), tgt_image.dtype)
     for y in range(height):
         _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch)
         flags = moving[y]
         if photo:
-            _sample(tgt_flat, scratch, width, seen)
+            _sample(tgt_flat, scratch, width, quad, seen)
             src_row = src_image[y]
             for x in range(width):  # branch-free: whether a point moved is not predictable
                 flags[x] = lands[x] & (abs(np.float64(src_row[x]) - seen[x]) > photometric)
@@ -251,11 +260,12 @@ def motion_classify(
     lands, tgt_edge = marks[LANDS], marks[TARGET_EDGE]
     us = _columns(width, geo)
     tgt_flat = tgt.reshape(-1)
+    quad = np.empty((4, width), tgt.dtype)
     z_flat = zbuffer.reshape(-1)
     edges_flat = tgt_edges.reshape(-1)
     for y in range(height):
         _landing(src[y], us, y, rt, geo, offset, box, (height, width), scratch)
-        _sample(tgt_flat, scratch, width, sampled)
+        _sample(tgt_flat, scratch, width, quad, sampled)
         for x in range(width):
             i = near[x]
             nearest[x] = z_flat[i]
