@@ -46,6 +46,7 @@ def _landing(
     box: tuple[float, float, float, float],
     shape: tuple[int, int],
     scratch: Row,
+    full: bool,
 ) -> None:  # pragma: no cover - compiled
     """Where each point of one row lands: its support's corner, weights, nearest pixel, depth.
 
@@ -55,7 +56,8 @@ def _landing(
     ``A = R·((x − cx)/f, (y − cy)/f, 1)``, ``Q = (f·B·A + s·T)/s``, so ``w = f·B·Az + s·Tz``
     is ``Qz·s`` and ``x' = cx + f·(f·B·Ax + s·Tx)/w``, the predicted disparity ``f·B·s/w −
     doffs``. ``us``: ``(x − cx)/f`` of every column (:func:`_columns`). ``box`` is (x_lo, x_hi,
-    y_lo, y_hi) of the landings kept. Writes ``s`` and ``w`` (the depth is ``w/s``).
+    y_lo, y_hi) of the landings kept. ``full`` (a constant where inlined): also the nearest
+    pixel, ``s`` and ``w`` (the depth is ``w/s``), which the z-buffer does not need.
     """
     values, index, marks = scratch
     ss, ws, predicted = values[S], values[W], values[PREDICTED]
@@ -82,8 +84,9 @@ def _landing(
         yp = yp if ok else 0.0
         x0 = min(int(xp), width - 2)
         y0 = min(int(yp), height - 2)
-        ss[x] = s
-        ws[x] = w
+        if full:
+            ss[x] = s
+            ws[x] = w
         predicted[x] = fb * s * inverse - doffs
         lands[x] = ok
         fx = xp - x0
@@ -91,7 +94,8 @@ def _landing(
         wx[x] = fx
         wy[x] = fy
         corner[x] = y0 * width + x0  # the nearest pixel: the corner, or a step right or down
-        near[x] = y0 * width + x0 + (fx >= 0.5) + width * (fy >= 0.5)
+        if full:
+            near[x] = y0 * width + x0 + (fx >= 0.5) + width * (fy >= 0.5)
 
 
 Row = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -186,7 +190,7 @@ def motion_splat(
     tgt_flat = tgt_image.reshape(-1)
     quad = np.empty((4, width), tgt_image.dtype)
     for y in range(height):
-        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch)
+        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch, False)
         flags = moving[y]
         if photo:
             _sample(tgt_flat, scratch, width, quad, seen)
@@ -264,7 +268,7 @@ def motion_classify(
     z_flat = zbuffer.reshape(-1)
     edges_flat = tgt_edges.reshape(-1)
     for y in range(height):
-        _landing(src[y], us, y, rt, geo, offset, box, (height, width), scratch)
+        _landing(src[y], us, y, rt, geo, offset, box, (height, width), scratch, True)
         _sample(tgt_flat, scratch, width, quad, sampled)
         for x in range(width):
             i = near[x]
