@@ -126,13 +126,20 @@ def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - c
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _blend(a: float, b: float, c: float, d: float, wx: float, wy: float) -> float:
+    """Bilinear value at ``(wx, wy)`` of a support ``a b / c d`` (NaN when one of them is)."""
+    top = a + wx * (b - a)
+    return top + wy * (c + wx * (d - c) - top)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sample(
     flat: np.ndarray, scratch: Row, width: int, quad: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled
     """The bilinear value of ``flat`` (an image as one row) at each landing of the row.
 
     The four support values are loaded into ``quad`` (4 × width, ``flat``'s type: bare loads,
-    no conversion), then blended in one vectorised pass with :func:`_bilinear`'s operations;
+    no conversion), then blended (:func:`_blend`) in one vectorised pass;
     scalar conversions in the loading loop cost more than the second pass. Unsigned indices:
     numba then adds no wrap-around of negative ones to each load.
     """
@@ -149,8 +156,7 @@ def _sample(
     for x in range(corner.shape[0]):
         a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
         c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
-        top = a + wx[x] * (b - a)
-        out[x] = top + wy[x] * (c + wx[x] * (d - c) - top)
+        out[x] = _blend(a, b, c, d, wx[x], wy[x])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -415,12 +421,9 @@ def _add(
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> float:
     """Bilinear value at ``(x0 + wx, y0 + wy)`` (NaN when a support pixel is NaN)."""
-    a = np.float64(image[y0, x0])
-    b = np.float64(image[y0, x0 + 1])
-    c = np.float64(image[y0 + 1, x0])
-    d = np.float64(image[y0 + 1, x0 + 1])
-    top = a + wx * (b - a)
-    return top + wy * (c + wx * (d - c) - top)
+    a, b = np.float64(image[y0, x0]), np.float64(image[y0, x0 + 1])
+    c, d = np.float64(image[y0 + 1, x0]), np.float64(image[y0 + 1, x0 + 1])
+    return _blend(a, b, c, d, wx, wy)
 
 
 @njit(cache=True, nogil=True)

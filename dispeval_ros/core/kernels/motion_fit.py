@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from dispeval_ros.core.kernels._jit import njit
-from dispeval_ros.core.kernels.motion import _bilinear, _columns
+from dispeval_ros.core.kernels.motion import _bilinear, _blend, _columns
 
 
 @njit(cache=True, nogil=True)
@@ -92,8 +92,7 @@ def offset_residuals(
         p01 = np.float64(tgt[y0, x0 + 1])
         p10 = np.float64(tgt[y0 + 1, x0])
         p11 = np.float64(tgt[y0 + 1, x0 + 1])
-        top = p00 + wx * (p01 - p00)
-        r = top + wy * (p10 + wx * (p11 - p10) - top) - offset - (fb / qz - doffs)
+        r = _blend(p00, p01, p10, p11, wx, wy) - offset - (fb / qz - doffs)
         if not abs(r) < np.inf or tgt_edges[int(yp + 0.5), int(xp + 0.5)]:
             continue
         if photo and (
