@@ -207,7 +207,7 @@ def motion_splat(
             flags[:] = False
         for x in range(width):
             if lands[x] and not flags[x]:
-                i = corner[x]
+                i = np.uint64(corner[x])
                 flat[i] = max(flat[i], np.float32(predicted[x]))
     _support_maximum(zbuffer)
 
@@ -276,8 +276,8 @@ def motion_classify(
     for y in range(height):
         _landing(src[y], us, y, rt, geo, offset, box, (height, width), scratch, True)
         _sample(tgt_flat, scratch, width, quad, sampled)
-        for x in range(width):
-            i = near[x]
+        for x in range(width):  # unsigned: no wrap-around of negative indices
+            i = np.uint64(near[x])
             nearest[x] = z_flat[i]
             tgt_edge[x] = edges_flat[i]
         edge_row = src_edges[y]
