@@ -289,6 +289,24 @@ def test_the_kernels_agree_with_plain_numpy_on_the_drive():
     assert set(np.unique(status)) == set(range(7))  # every mask took part
 
 
+@pytest.mark.parametrize("thresholds", [(0.5,), (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5)])
+def test_any_number_of_thresholds_agrees_with_plain_numpy(thresholds):
+    """The row sums count three thresholds in their main pass and the rest three at a time."""
+    (f0, _, _), (f1, _, _) = drive_frame(0), drive_frame(1)
+    rng = np.random.default_rng(5)
+    e0 = f0.gt_left + rng.normal(0, 0.3, f0.gt_left.shape).astype(np.float32)
+    e1 = f1.gt_left + rng.normal(0, 0.3, f1.gt_left.shape).astype(np.float32)
+    options = EgoMotionOptions(fit_offset=False, thresholds=thresholds)
+    source, target = prepare_frame(e0, f0.left), prepare_frame(e1, f1.left)
+    result = egomotion_residual(source, target, drive_motion(0, 1), drive_camera(), None, options)
+    sums, _, _ = numpy_residual(source, target, drive_motion(0, 1), drive_camera(), options, 0.0)
+    assert result.columns[-len(thresholds) :] == tuple(f"bad_{t:g}" for t in thresholds)
+    bad = sums[0, len(BASE_COLUMNS) :]
+    assert np.all(np.diff(bad) < 0)  # every threshold counts something different
+    np.testing.assert_array_equal(result.sums[0, len(BASE_COLUMNS) :], bad)  # counts: exact
+    np.testing.assert_allclose(result.sums, sums, rtol=1e-6, atol=1e-6)
+
+
 # --------------------------------------------------------------------------------------------
 # Hand-worked cases
 
