@@ -105,19 +105,24 @@ class EdgeSpan:
 
 @dataclass
 class _Edge:
-    """One dynamic edge's samples in stamp order: the matrix given, and ``x y z qx qy qz qw``."""
+    """One dynamic edge's samples in stamp order: the matrix given, and ``x y z qx qy qz qw``.
+
+    The pose (translation and quaternion) is worked out when an interpolation first needs it:
+    most samples of a fast /tf are never between the two of a lookup.
+    """
 
     parent: str
     child: str
     stamps: list[int] = field(default_factory=list)
-    poses: list[tuple[np.ndarray, _Pose]] = field(default_factory=list)
+    matrices: list[np.ndarray] = field(default_factory=list)
+    poses: list[_Pose | None] = field(default_factory=list)
     pruned: bool = False
 
     @property
     def name(self) -> str:
         return f"{self.parent} → {self.child}"
 
-    def insert(self, stamp: int, pose: tuple[np.ndarray, _Pose], cache_ns: int) -> None:
+    def insert(self, stamp: int, matrix: np.ndarray, cache_ns: int) -> None:
         """Insert in stamp order (a repeated stamp replaces), then drop what left the window."""
         stamps = self.stamps
         if stamps and stamp < stamps[-1] - cache_ns:
@@ -128,26 +133,34 @@ class _Edge:
             )
         index = bisect.bisect_left(stamps, stamp)
         if index < len(stamps) and stamps[index] == stamp:
-            self.poses[index] = pose
+            self.matrices[index], self.poses[index] = matrix, None
             return
         stamps.insert(index, stamp)
-        self.poses.insert(index, pose)
+        self.matrices.insert(index, matrix)
+        self.poses.insert(index, None)
         drop = bisect.bisect_left(stamps, stamps[-1] - cache_ns)
         if drop:
-            del stamps[:drop], self.poses[:drop]
+            del stamps[:drop], self.matrices[:drop], self.poses[:drop]
             self.pruned = True
+
+    def _pose(self, index: int) -> _Pose:
+        pose = self.poses[index]
+        if pose is None:
+            translation, quaternion = pose_from_matrix(self.matrices[index])
+            pose = self.poses[index] = tuple(float(v) for v in (*translation, *quaternion))
+        return pose
 
     def at(self, stamp: int) -> np.ndarray:
         """The 4×4 matrix (child → parent) at ``stamp``, interpolated; never extrapolated."""
         stamps = self.stamps
         index = bisect.bisect_left(stamps, stamp)
         if index < len(stamps) and stamps[index] == stamp:
-            return self.poses[index][0]  # the matrix as given: no quaternion round trip
+            return self.matrices[index]  # the matrix as given: no quaternion round trip
         if index == 0 or index == len(stamps):
             raise self._outside(stamp)
         before, after = stamps[index - 1], stamps[index]
         ratio = (stamp - before) / (after - before)
-        return _matrix(_interpolate(self.poses[index - 1][1], self.poses[index][1], ratio))
+        return _matrix(_interpolate(self._pose(index - 1), self._pose(index), ratio))
 
     def _outside(self, stamp: int) -> ExtrapolationError:
         first, last = self.stamps[0], self.stamps[-1]
@@ -249,7 +262,8 @@ class TransformHistory:
                 except (TransformDataError, CalibrationError) as error:
                     problems.append(str(error))
                     continue
-                kept.append(StaticTransform(parent, child, transform.matrix))
+                matrix = np.array(transform.matrix, dtype=np.float64)  # never the caller's
+                kept.append(StaticTransform(parent, child, matrix))
             self.static.add(kept)
         _raise_first(problems)
 
@@ -261,8 +275,6 @@ class TransformHistory:
         if matrix.shape != (4, 4) or not np.isfinite(matrix).all():
             raise TransformDataError(f"{name} at {format_stamp(stamp_ns)}: not a finite 4×4")
         check_rotation(matrix[:3, :3], f"{name} at {format_stamp(stamp_ns)}: the rotation")
-        translation, quaternion = pose_from_matrix(matrix)
-        pose = (matrix.copy(), tuple(float(v) for v in (*translation, *quaternion)))
         with self._lock:
             edge = self._edges.get(child)
             if edge is None:
@@ -275,7 +287,7 @@ class TransformHistory:
                     f"{name} at {format_stamp(stamp_ns)}: frame '{child}' already has the parent "
                     f"'{edge.parent}' on /tf; a frame has one parent"
                 )
-            edge.insert(int(stamp_ns), pose, self.cache_ns)
+            edge.insert(int(stamp_ns), matrix.copy(), self.cache_ns)
 
     def extend(self, samples: Iterable[tuple[int, StaticTransform]]) -> list[str]:
         """Add every sample that can be added; the one-line problems of the others."""

@@ -18,7 +18,7 @@ from dispeval_ros.core.transform_history import (
     TransformDataError,
     TransformHistory,
 )
-from dispeval_ros.core.transforms import StaticTransform, TransformTree
+from dispeval_ros.core.transforms import StaticTransform, TransformTree, check_rotation
 from dispeval_ros.errors import CalibrationError, InputError
 
 MS = 1_000_000
@@ -72,6 +72,10 @@ def test_a_hand_worked_chain() -> None:
     back = history.lookup("camera", "odom", S // 2)
     np.testing.assert_allclose(back @ [3.0, 3.0, 0.5, 1.0], [0, 0, 2, 1], atol=1e-12)
     np.testing.assert_allclose(history.lookup("camera", "camera", 5), np.eye(4))
+    # A lookup returns a new array: changing it changes nothing stored.
+    history.lookup("odom", "base_link", S)[:] = 0
+    history.lookup("base_link", "camera", S)[:] = 0
+    np.testing.assert_allclose(history.lookup("odom", "camera", S), to_odom, atol=1e-12)
     # A turn in place by +90° about z: the camera turns about its −y axis (y is down).
     turn = _vehicle([(0, np.eye(4)), (S, _yaw(math.pi / 2))]).camera_motion("camera", 0, S)
     # The camera at t1 sits where base_link's x = 1 went: (0, 1, 0.5) in odom, i.e. 1 m to the
@@ -250,3 +254,26 @@ def test_ready() -> None:
     fresh.camera_motion("camera", 0, S)
     assert fresh.ready(S)
     assert not fresh.ready(S + 1)
+
+
+def test_check_rotation_is_numpys_rule() -> None:
+    """check_rotation in plain floats accepts exactly what allclose(R·Rᵀ, I) and det ≈ 1 do."""
+    rng = np.random.default_rng(8)
+    accepted = 0
+    for scale in np.repeat([1e-4, 3e-4, 5e-4, 1e-3, 3e-3], 60):
+        rotation = _yaw(float(rng.uniform(-3, 3)))[:3, :3] + rng.normal(0, scale, (3, 3))
+        expected = bool(
+            np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3)
+            and abs(np.linalg.det(rotation) - 1) < 1e-3
+        )
+        try:
+            check_rotation(rotation, "R")
+            got = True
+        except CalibrationError:
+            got = False
+        assert got == expected
+        accepted += got
+    assert 60 < accepted < 240  # both sides of the boundary were tried
+    for bad in (np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan), np.eye(4)):
+        with pytest.raises(CalibrationError, match=r"^R is not a rotation matrix$"):
+            check_rotation(bad, "R")
