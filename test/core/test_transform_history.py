@@ -277,3 +277,10 @@ def test_check_rotation_is_numpys_rule() -> None:
     for bad in (np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan), np.eye(4)):
         with pytest.raises(CalibrationError, match=r"^R is not a rotation matrix$"):
             check_rotation(bad, "R")
+
+
+def test_the_readme_example_prints_what_it_says(capsys: pytest.CaptureFixture[str]) -> None:
+    from test_readme import readme_block
+
+    exec(readme_block("tf-history-example", "python"), {})
+    assert capsys.readouterr().out == "[0. 0. 1.]\n"
