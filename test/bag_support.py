@@ -5,6 +5,7 @@ the same bag in the ROS 1 format, and what "the same database" means.
 from __future__ import annotations
 
 import sqlite3
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -85,11 +86,14 @@ NOISE = {"rough": 3.0, "fine": 0.3}
 """px of Gaussian noise on the GT: rough is logged first (the fastest), fine after it."""
 
 
-def fast_rough_bag(root: Path, frames: int) -> tuple[Path, list[str], dict[str, int]]:
+def fast_rough_bag(
+    root: Path, frames: int, noise: Mapping[str, float] = NOISE
+) -> tuple[Path, list[str], dict[str, int]]:
     """A synthetic drive bag where the fastest method (``rough``) is the least accurate.
 
-    Returns the bag, the ``dispeval bag`` command line of its two methods (``--out`` ROOT/res,
-    every criterion) and each method's make-bag order (the lower, the sooner it is logged).
+    Returns the bag, the ``dispeval bag`` command line of its methods (``noise``: px of noise
+    by method, logged in this order; ``--out`` ROOT/res, every criterion) and each method's
+    make-bag order (the lower, the sooner it is logged).
     """
     import numpy as np
 
@@ -99,13 +103,13 @@ def fast_rough_bag(root: Path, frames: int) -> tuple[Path, list[str], dict[str, 
     drive = list(synthetic_frames(frames, 192, 64, 10.0, seed=4))
     rng = np.random.default_rng(5)
     sources = []
-    for name, noise in NOISE.items():
+    for name, sigma in noise.items():
         folder = root / name
         folder.mkdir()
         for index, frame in enumerate(drive):
             assert frame.gt is not None
             gt = frame.gt.astype(np.float32)
-            noisy = gt + rng.normal(0, noise, gt.shape).astype(np.float32)
+            noisy = gt + rng.normal(0, sigma, gt.shape).astype(np.float32)
             noisy = np.where(np.isfinite(gt), np.clip(noisy, 0.5, None), np.inf)
             np.save(folder / f"{index:06d}.npy", noisy.astype(np.float32))
         sources.append(estimates_from(name, folder))
@@ -118,7 +122,7 @@ def fast_rough_bag(root: Path, frames: int) -> tuple[Path, list[str], dict[str, 
     args = bag_args(bag, root / "res", "--criteria", "all")
     start = args.index("--method")
     args[start : start + 2 * len(METHODS)] = [
-        item for name in NOISE for item in ("--method", f"{name}={disparity_topic(name)}")
+        item for name in noise for item in ("--method", f"{name}={disparity_topic(name)}")
     ]
     return bag, args, orders
 

@@ -54,15 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "one map per frame named by the frame's number (0000000003.png or 000003.png = frame "
         "3; 16-bit PNG value/256, PFM, NPY); repeatable",
     )
-    parser.add_argument("--frames", type=int, default=30, help="synthetic frames (default 30)")
-    parser.add_argument("--fps", type=float, default=10.0, help="synthetic frame rate (default 10)")
-    parser.add_argument(
-        "--width", type=int, default=620, help="synthetic image width (default 620)"
-    )
-    parser.add_argument(
-        "--height", type=int, default=188, help="synthetic image height (default 188)"
-    )
-    parser.add_argument("--seed", type=int, default=0, help="synthetic world seed (default 0)")
+    add_drive_options(parser)
     parser.add_argument(
         "--no-lidar",
         action="store_true",
@@ -83,6 +75,32 @@ MAX_SIDE = 8192
 """Largest synthetic image side (px): 8192×8192 float32 maps are already 256 MB a frame."""
 
 
+def add_drive_options(parser: argparse.ArgumentParser) -> None:
+    """The synthetic drive's options (``make-bag``, ``make-scene``): frames, rate, size, seed."""
+    parser.add_argument("--frames", type=int, default=30, help="synthetic frames (default 30)")
+    parser.add_argument("--fps", type=float, default=10.0, help="synthetic frame rate (default 10)")
+    parser.add_argument(
+        "--width", type=int, default=620, help="synthetic image width (default 620)"
+    )
+    parser.add_argument(
+        "--height", type=int, default=188, help="synthetic image height (default 188)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="synthetic world seed (default 0)")
+
+
+def check_drive_options(args: argparse.Namespace) -> None:
+    """Refuse a drive that cannot be made (one line)."""
+    if not (args.frames >= 1 and math.isfinite(args.fps) and args.fps > 0):
+        raise ConfigurationError(
+            f"need --frames ≥ 1 and --fps > 0, got {args.frames}, {args.fps:g}"
+        )
+    if not (64 <= args.width <= MAX_SIDE and 32 <= args.height <= MAX_SIDE):
+        raise ConfigurationError(
+            f"--width must be in 64..{MAX_SIDE} and --height in 32..{MAX_SIDE}, got "
+            f"{args.width}×{args.height}"
+        )
+
+
 def _remove(path: Path) -> None:
     """Delete a bag this command started (a rosbag2 folder or an MCAP file)."""
     if path.is_dir():
@@ -96,15 +114,7 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.offline.make_bag import dataset_frames, synthetic_frames, write_bag
     from dispeval_ros.testbed.lidar import LidarModel
 
-    if not (args.frames >= 1 and math.isfinite(args.fps) and args.fps > 0):
-        raise ConfigurationError(
-            f"need --frames ≥ 1 and --fps > 0, got {args.frames}, {args.fps:g}"
-        )
-    if not (64 <= args.width <= MAX_SIDE and 32 <= args.height <= MAX_SIDE):
-        raise ConfigurationError(
-            f"--width must be in 64..{MAX_SIDE} and --height in 32..{MAX_SIDE}, got "
-            f"{args.width}×{args.height}"
-        )
+    check_drive_options(args)
     if args.output.exists():
         raise InputError(f"{args.output} exists; remove it or choose another path")
     estimates = _estimates(args.est)

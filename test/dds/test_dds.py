@@ -676,3 +676,106 @@ def test_live_and_play_over_dds_match_dispeval_bag(
     assert {values["interpretation"] for values in final.values()} == {
         summary["sequences"][0]["models"]["interpretation"]
     }
+
+
+@needs_dds
+def test_estimates_that_cannot_be_scored_are_failed_and_keep_their_arrivals(
+    localhost: Path, tmp_path: Path
+) -> None:
+    """Over DDS as over rclpy: an estimate delivered but not scored (wrong size, an encoding
+    that cannot be read) is failed for its method, in the shutdown counts, the database,
+    ``summary.json`` and the summary; its arrival is kept (``timing.json``), on a frame where
+    one method fails, where both do, and where the ground truth cannot be read."""
+    from dispeval_ros.dds.session import LiveSession
+    from dispeval_ros.dds.transport import DdsTransport
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.stream.summarizer import SummarizerConfig
+    from dispeval_ros.stream.vectors import arrivals_of
+
+    domain = fresh_domain()
+    topics = {"good": "/test/good/disparity", "bad": "/test/bad/disparity"}
+    config = CoreConfig(methods=topics, gt_topic="/test/gt")
+    out = tmp_path / "live"
+    errors: list[str] = []
+    summary_config = SummarizerConfig(out, every_n=1)
+    session = LiveSession(domain, config, summary_config, {"t": 1}, on_error=errors.append)
+    feed = DdsTransport(domain)
+    scores: list[tuple[int, list[StatusRecord]]] = []
+    try:
+        store = feed.typestore
+        writers = {
+            name: feed.writer(topic, DISPARITY, wire.PLAYBACK) for name, topic in topics.items()
+        }
+        gt_writer = feed.writer(config.gt_topic, "sensor_msgs/msg/Image", wire.PLAYBACK)
+        listener = feed.reader(wire.SCORES_TOPIC, wire.DIAGNOSTIC_ARRAY, wire.SUMMARIZER_INPUT)
+        thread = feed.reader_thread("test")
+        thread.add(listener, lambda received: scores.append(records_of(received.msg)))
+        thread.start()
+        session.start()
+        everything = [gt_writer, *writers.values()]
+        assert wait_until(lambda: all(w.matched() for w in everything) and listener.matched(), 10)
+
+        def disparity(array: np.ndarray, stamp: int, encoding: str = "32FC1") -> Any:
+            msg = disparity_to_msg(store, array, stamp, "left", 100.0, 0.5, 0.0, 64.0)
+            if encoding != "32FC1":
+                msg.image.encoding = encoding
+            return msg
+
+        rows, columns = np.mgrid[0:24, 0:32]
+        start = time.time_ns()
+        for k, case in enumerate(["bad size", "both fail", "both scored", "gt fails", "bad enc"]):
+            stamp = start + k * 100_000_000
+            gt = (8.0 + 0.25 * columns + 0.1 * rows + k).astype(np.float32)
+            good, bad = gt + np.float32(0.3), gt + np.float32(2.0)
+            gt_msg = image_to_msg(store, gt, stamp, "left", "32FC1")
+            if case == "gt fails":
+                gt_msg = image_to_msg(store, np.zeros((24, 32, 3), np.uint8), stamp, "left", "rgb8")
+            gt_writer.publish(gt_msg)
+            writers["good"].publish(disparity(good[:12] if case == "both fail" else good, stamp))
+            if case in ("bad size", "both fail"):
+                writers["bad"].publish(disparity(bad[:12], stamp))
+            elif case == "bad enc":
+                writers["bad"].publish(disparity(bad.view(np.uint8)[:, :32], stamp, "rgb8"))
+            else:
+                writers["bad"].publish(disparity(bad, stamp))
+            assert wait_until(lambda k=k: len(scores) == k + 1, 30), (case, len(scores))
+    finally:
+        session.stop()
+        feed.close()
+
+    assert errors == []  # each problem is the frame's, not a transport error
+    stamps = [stamp for stamp, _ in scores]
+    assert stamps == sorted(stamps)
+    assert len(stamps) == 5
+    published: dict[tuple[int, str], tuple[int, int]] = {}
+    for _, records in scores:
+        for record in records:
+            if read_delivery(record) is None:
+                published.update(((t[0], m), t) for m, t in arrivals_of(record).items())
+    assert published.keys() == {(s, m) for s in stamps for m in topics}  # every arrival
+    assert all(arrival >= sent for sent, arrival in published.values())
+    failed = {"good": 2, "bad": 4}  # 'good': both fail, gt fails; 'bad': all but 'both scored'
+    assert {m: c.failed for m, c in session.counts.items()} == failed
+    assert {m: c.matched for m, c in session.counts.items()} == {"good": 3, "bad": 1}
+    with ResultsStore.open(out) as results:
+        (sequence,) = results.sequences()
+        stored = {
+            (entry.estimate_stamp, method): (entry.estimate_stamp, entry.arrival)
+            for method, entries in (results.timing(sequence) or {}).items()
+            for entry in entries
+        }
+        assert stored == published
+        counts = results.match_counts(sequence)
+        assert {m: c.failed for m, c in counts.items()} == failed
+        assert results.stamps(sequence) == [stamps[0], stamps[2], stamps[4]]
+        assert sorted((p.stamp, p.method or "") for p in results.problems()) == [
+            (stamps[0], "bad"),
+            (stamps[1], "bad"),
+            (stamps[1], "good"),
+            (stamps[3], ""),
+            (stamps[4], "bad"),
+        ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert {m: c["failed"] for m, c in summary["sequences"][0]["counts"].items()} == failed
+    timing = json.loads((out / "timing.json").read_text())
+    assert {name.rpartition("/")[2] for name in timing} == set(topics)

@@ -14,16 +14,19 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from bag_support import NOISE, fast_rough_bag
 from test_report import browser, make_small_store, open_report  # noqa: F401  (browser fixture)
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.measures import measure_unit
+from dispeval_ros.core.models import evaluate_models
+from dispeval_ros.core.objectives import split_timing_measures, timing_objectives
 from dispeval_ros.core.timing import TIMING_MEASURES
 from dispeval_ros.io.store import TIMING_TABLE, ResultsStore
 from dispeval_ros.offline.make_bag import method_latency_ns
-from dispeval_ros.report.data import build_report_data
+from dispeval_ros.report.data import Selection, build_report_data, selection_objectives
 from dispeval_ros.report.figures import FIGURES, write_figures
 from dispeval_ros.report.latency import latency_data
 from dispeval_ros.report.latency_figures import (
@@ -33,6 +36,7 @@ from dispeval_ros.report.latency_figures import (
     latency_accuracy_figure,
     latency_panels,
 )
+from dispeval_ros.summary import sequence_timing
 
 FRAMES = 12
 OBJECTIVES = ["sze", "bmpre", "latency_p95"]
@@ -207,3 +211,60 @@ def test_objectives_the_models_cannot_use_leave_the_groups_out_not_the_plot(
                  "--objective-measures", "sze", "a42"]) == 2  # fmt: skip
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "--objective-measures a42: neither stored" in line
+
+
+THREE = {"rough": 3.0, "fine": 0.3, "slow": 1.0}
+"""px of noise, logged in this order: ``slow`` is less accurate than ``fine`` and later, so
+dominated by it (group 2) until ``fine`` is deselected; then it is incomparable with ``rough``."""
+
+
+def python_first_group(store: ResultsStore, sequence: str, methods: list[str]) -> set[str]:
+    """A* group 1 of summary.json's objectives on ``methods`` only, by the Python models: the
+    accuracy objectives on their common frames, the timing ones of the sequence."""
+    scored, timed = split_timing_measures(OBJECTIVES)
+    overlapping = set(store.overlapping_criteria())
+    criteria = tuple(c for c in store.criteria() if c not in overlapping)
+    selection = Selection((sequence,), criteria, tuple(scored), tuple(methods))
+    names, _, matrix = selection_objectives(store, selection)
+    _, block = timing_objectives(sequence_timing(store, sequence), sequence, names, timed)
+    models = evaluate_models(names, np.hstack([matrix, block]))
+    return {m for m, group in models.groups.items() if group == 1}
+
+
+def test_browser_rings_group_one_of_the_selected_methods(
+    browser: Any,  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    """Deselecting a member of A* group 1 regroups the rest: the ring moves to what the
+    Python models give on the remaining methods; selecting it again brings the run's back."""
+    _, args, _ = fast_rough_bag(tmp_path, FRAMES, THREE)
+    out = tmp_path / "res"
+    assert main([*args, "--objective-measures", *OBJECTIVES]) == 0
+    assert main(["report", str(out), "--quiet"]) == 0
+    (sequence,) = json.loads((out / "summary.json").read_text())["sequences"]
+    groups = sequence["models"]["groups"]
+    assert groups == {"rough": 1, "fine": 1, "slow": 2}
+    with ResultsStore.open(out) as store:
+        assert python_first_group(store, "drive", list(THREE)) == {"rough", "fine"}
+        expected = python_first_group(store, "drive", ["rough", "slow"])
+    assert expected == {"rough", "slow"}  # the ring moves
+
+    page, errors = open_report(browser, out / "report.html")
+
+    def ringed() -> set[str]:
+        drive = page.evaluate("window.dispevalLatency()")["sequences"]["drive"]
+        return {p["name"] for p in drive["points"] if p["first"]}
+
+    assert ringed() == {"rough", "fine"}
+    fine = page.locator(f'input[data-kind="method"][data-index="{list(THREE).index("fine")}"]')
+    renders = page.evaluate("Number(document.body.dataset.renders)")
+    fine.uncheck()
+    page.wait_for_function(f"Number(document.body.dataset.renders) > {renders}")
+    assert ringed() == expected
+    assert page.locator("#latency-view g.first-group").count() == 2
+    assert "A* group 1 of the selected methods" in page.text_content("#latency-note")
+    fine.check()
+    page.wait_for_function(f"Number(document.body.dataset.renders) > {renders + 1}")
+    assert ringed() == {"rough", "fine"}
+    assert not errors
+    page.close()

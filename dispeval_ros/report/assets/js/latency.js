@@ -20,6 +20,41 @@
     return Object.prototype.hasOwnProperty.call(obj, key) ? obj[key] : undefined;
   }
 
+  /* Names of A* group 1 of the run's objectives (latency.py: the summary's per sequence) among
+   * the selected methods of sequence s: the accuracy objectives built as the page builds its
+   * own models' (buildObjectives: the common frames of these methods), the timing ones from
+   * the sequence's values (objectives.timing_objectives), so deselecting a method regroups the
+   * rest as summarize would on them. Empty without groups, or for fewer than two methods. */
+  function firstGroupOf(s, block, methodIdx) {
+    const info = D.raw.latency;
+    if (!block.groups) return new Set();  // the models could not be made on the run's objectives
+    const timed = {};
+    for (const m of info.measures) timed[m.name] = m;
+    const timing = info.objective_measures.filter(function (q) { return own(timed, q); });
+    const built = buildObjectives({
+      sequences: [D.sequences[s].name],
+      methods: methodIdx.filter(function (m) { return D.seqHas[s * D.M + m]; })
+        .map(function (m) { return D.methods[m]; }),
+      criteria: D.criteria.filter(function (c) { return !c.overlapping; })
+        .map(function (c) { return c.name; }),
+      measures: info.objective_measures.filter(function (q) { return !own(timed, q); }),
+      granularity: info.granularity,
+    });
+    const n = built.n, width = built.m + timing.length;
+    if (n < 2 || !(built.common[s] || []).length || !width) return new Set();
+    const matrix = new Float64Array(n * width);
+    built.methods.forEach(function (method, i) {
+      matrix.set(built.matrix.subarray(i * built.m, (i + 1) * built.m), i * width);
+      const values = own(block.values, method) || {};
+      timing.forEach(function (q, k) {
+        const v = own(values, q);
+        const x = v === null || v === undefined ? NaN : v;
+        matrix[i * width + built.m + k] = timed[q].higher ? -x : x;
+      });
+    });
+    return new Set(evaluateModels(built.methods, matrix, n, width).astar);
+  }
+
   function buildLatencyView() {
     const info = D.raw.latency;
     ui.latencyPlots = el('div', { id: 'latency-plots', className: 'bars' });
@@ -69,13 +104,14 @@
       const methods = built.methodIdx.filter(function (m) {
         return own(block.values, D.methods[m]) !== undefined;
       });
+      const ringed = firstGroupOf(s, block, built.methodIdx);
       const points = methods.map(function (m) {
         const method = D.methods[m];
         const x = block.values[method][xm.name];
         const totals = defined ? totalsOf(frames, c, m) : null;
         return {
           name: method, x: x === null ? NaN : x, y: totals ? totalMeasure(recipe, totals) : NaN,
-          first: block.first_group.indexOf(method) >= 0,
+          first: ringed.has(method),
         };
       });
       const front = front2d(points, xm.higher, !!recipe.higher);
@@ -88,8 +124,8 @@
     }
     ui.latencyNote.textContent = 'x: ' + xm.label + ' (' + xm.text + ', over every frame the ' +
       'method delivered); y: ' + yLabel + ' of criterion ' + D.criteria[c].name +
-      ' over the frames every selected method delivered. Ringed: A* group 1 over the run\'s ' +
-      'objectives (' + info.objective_measures.join(', ') + (info.granularity === 'frame'
+      ' over the frames every selected method delivered. Ringed: A* group 1 of the selected ' +
+      'methods over the run\'s objectives (' + info.objective_measures.join(', ') + (info.granularity === 'frame'
         ? ', per frame' : '') + '); line: the non-dominated front of these two axes.' +
       (defined ? '' : ' ' + recipe.name + ' is not defined on criterion ' + D.criteria[c].name +
         ': no y values.') +
