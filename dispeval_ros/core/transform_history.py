@@ -405,7 +405,7 @@ class TransformHistory:
     # -- lookups -------------------------------------------------------------------------------
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> np.ndarray:
-        """The 4×4 matrix mapping points in ``source`` into ``target`` at ``stamp_ns`` (tf2's order).
+        """The 4×4 matrix mapping points in ``source`` into ``target`` at ``stamp_ns`` (tf2 order).
 
         Raises :class:`TransformChainError` when no chain connects them and
         :class:`ExtrapolationError` when a dynamic edge of the chain has no samples around
