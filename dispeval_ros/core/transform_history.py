@@ -94,13 +94,19 @@ def _frame(name: str) -> str:
 
 @dataclass(frozen=True)
 class EdgeSpan:
-    """What one dynamic edge holds: its frames, how many samples and their first/last stamps."""
+    """What one dynamic edge holds: its frames, how many samples and their first/last stamps.
+
+    ``late``: samples that arrived after one with a later stamp (put in order; a publisher's or
+    recorder's reordering shows here); ``replaced``: samples that replaced one of the same stamp.
+    """
 
     parent: str
     child: str
     samples: int
     first_ns: int
     last_ns: int
+    late: int = 0
+    replaced: int = 0
 
 
 @dataclass
@@ -117,6 +123,8 @@ class _Edge:
     matrices: list[np.ndarray] = field(default_factory=list)
     poses: list[_Pose | None] = field(default_factory=list)
     pruned: bool = False
+    late: int = 0
+    replaced: int = 0
 
     @property
     def name(self) -> str:
@@ -134,7 +142,10 @@ class _Edge:
         index = bisect.bisect_left(stamps, stamp)
         if index < len(stamps) and stamps[index] == stamp:
             self.matrices[index], self.poses[index] = matrix, None
+            self.replaced += 1
             return
+        if index < len(stamps):
+            self.late += 1
         stamps.insert(index, stamp)
         self.matrices.insert(index, matrix)
         self.poses.insert(index, None)
@@ -357,7 +368,9 @@ class TransformHistory:
         """Each dynamic edge's sample count and first/last stamp (for ``info``), by child."""
         with self._lock:
             return [
-                EdgeSpan(e.parent, e.child, len(e.stamps), e.stamps[0], e.stamps[-1])
+                EdgeSpan(
+                    e.parent, e.child, len(e.stamps), e.stamps[0], e.stamps[-1], e.late, e.replaced
+                )
                 for _, e in sorted(self._edges.items())
                 if e.stamps
             ]

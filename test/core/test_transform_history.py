@@ -122,6 +122,13 @@ def test_out_of_order_and_repeated_samples() -> None:
     assert ordered.lookup("odom", "base_link", 100 * MS)[0, 3] == pytest.approx(42.0)
     (span,) = ordered.spans()
     assert (span.samples, span.first_ns, span.last_ns) == (20, 0, 950 * MS)
+    assert (span.late, span.replaced) == (0, 1)
+    # Each sample that came after a later stamp is counted (what `info` reports).
+    late = sum(
+        stamp < max(shuffled_stamps[:k], default=-1) for k, stamp in enumerate(shuffled_stamps)
+    )
+    assert late > 0
+    assert shuffled.spans()[0].late == late
 
 
 def test_no_extrapolation_says_by_how_much() -> None:
