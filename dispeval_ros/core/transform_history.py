@@ -84,7 +84,9 @@ def format_stamp(stamp_ns: int) -> str:
 
 
 def _ms(delta_ns: int) -> str:
-    return f"{abs(delta_ns) / 1e6:.3f} ms"
+    """A stamp difference: in ms to the µs, or in ns below a millisecond (never "0.000 ms")."""
+    size = abs(delta_ns)
+    return f"{size / 1e6:.3f} ms" if size >= 1_000_000 else f"{size} ns"
 
 
 def _frame(name: str) -> str:
