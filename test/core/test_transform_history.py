@@ -291,4 +291,3 @@ def test_the_readme_example_prints_what_it_says(capsys: pytest.CaptureFixture[st
 
     exec(readme_block("tf-history-example", "python"), {})
     assert capsys.readouterr().out == "[0. 0. 1.]\n"
-
