@@ -126,3 +126,15 @@ def test_a_synthetic_bag_scores_ego_motion_from_its_tf(tmp_path: Path) -> None:
             quantiles.append(float(np.percentile(np.abs(residual[status == 0]), 85)))
         assert quantiles[0] < 0.01
         assert quantiles[1] > 0.5
+
+
+def test_make_bag_says_where_the_motion_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dispeval_ros.cli.main import main
+
+    size = ["--frames", "2", "--width", "64", "--height", "32"]
+    assert main(["make-bag", str(tmp_path / "plain"), *size, "--no-lidar"]) == 0
+    assert "\nego-motion: /tf (odom → base_link), /tf_static\n" in capsys.readouterr().out
+    assert main(["make-bag", str(tmp_path / "lidar"), *size]) == 0
+    assert "with /tf_static; ego-motion on /tf (odom → base_link)\n" in capsys.readouterr().out
