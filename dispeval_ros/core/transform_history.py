@@ -32,7 +32,12 @@ from dispeval_ros.core.transforms import (
     invert_rigid,
     pose_from_matrix,
 )
-from dispeval_ros.errors import CalibrationError, InputError
+from dispeval_ros.errors import (
+    CalibrationError,
+    ExtrapolationError,
+    TransformChainError,
+    TransformDataError,
+)
 
 __all__ = [
     "DEFAULT_CACHE_NS",
@@ -52,28 +57,6 @@ DEFAULT_CACHE_NS = 10_000_000_000
 """How long each dynamic edge keeps its samples behind its newest one (tf2's default: 10 s)."""
 DEFAULT_FIXED_FRAME = "odom"
 """REP 105's continuous world frame: the camera's motion goes through it when it is above it."""
-
-
-class TransformDataError(InputError):
-    """``/tf`` data that cannot be kept: two parents, a loop, too old, or none at all."""
-
-
-class TransformChainError(CalibrationError):
-    """No chain of transforms connects two frames (or the chain does not move)."""
-
-
-class ExtrapolationError(InputError):
-    """A lookup at a stamp outside one dynamic edge's samples (tf2's ExtrapolationException).
-
-    ``future`` is True when the stamp is after the newest sample: waiting for more ``/tf``
-    may answer it; a stamp before the oldest sample never will be.
-    """
-
-    def __init__(self, message: str, *, edge: tuple[str, str], stamp_ns: int, future: bool):
-        super().__init__(message)
-        self.edge = edge
-        self.stamp_ns = stamp_ns
-        self.future = future
 
 
 def format_stamp(stamp_ns: int) -> str:
