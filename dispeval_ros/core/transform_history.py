@@ -229,10 +229,14 @@ class TransformHistory:
     """
 
     def __init__(self, static: TransformTree | None = None, cache_ns: int = DEFAULT_CACHE_NS):
-        if not (isinstance(cache_ns, int) and cache_ns > 0):
+        if (
+            isinstance(cache_ns, bool)
+            or not isinstance(cache_ns, (int, np.integer))
+            or cache_ns <= 0
+        ):
             raise TransformDataError(f"the /tf cache window must be > 0 ns, got {cache_ns!r}")
         self.static = static if static is not None else TransformTree()
-        self.cache_ns = cache_ns
+        self.cache_ns = int(cache_ns)
         self._edges: dict[str, _Edge] = {}
         self._lock = threading.RLock()
         self._paths: dict[tuple[str, str], _Path] = {}

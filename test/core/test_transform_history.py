@@ -165,8 +165,10 @@ def test_the_cache_window() -> None:
     assert "/tf odom → base_link at 1.800000000 s" in str(old.value)
     assert "1100.000 ms older than its newest sample" in str(old.value)
     assert "the cache keeps 1 s" in str(old.value)
-    with pytest.raises(TransformDataError, match="cache window must be > 0"):
-        TransformHistory(cache_ns=0)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(TransformDataError, match="cache window must be > 0"):
+            TransformHistory(cache_ns=bad)  # type: ignore[arg-type]
+    assert TransformHistory(cache_ns=np.int64(5)).cache_ns == 5
 
 
 def test_a_frame_has_one_parent() -> None:
