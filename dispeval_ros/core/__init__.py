@@ -85,6 +85,7 @@ __getattr__, __dir__ = lazy_exports(
             "PreparedEstimate",
             "TemporalScorer",
         ),
+        "dispeval_ros.core.transform_history": ("TransformHistory",),
         "dispeval_ros.core.transforms": (
             "StaticTransform",
             "TransformTree",
@@ -149,6 +150,7 @@ if TYPE_CHECKING:
         PreparedEstimate,
         TemporalScorer,
     )
+    from dispeval_ros.core.transform_history import TransformHistory
     from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
@@ -185,6 +187,7 @@ __all__ = [
     "StaticTransform",
     "TemporalScorer",
     "TemporalSums",
+    "TransformHistory",
     "TransformTree",
     "VisibilityOptions",
     "astar_groups",
