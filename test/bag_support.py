@@ -7,6 +7,9 @@ from __future__ import annotations
 import sqlite3
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
 
@@ -122,3 +125,16 @@ def fast_rough_bag(
         item for name in noise for item in ("--method", f"{name}={disparity_topic(name)}")
     ]
     return bag, args, orders
+
+
+def quaternion_matrix(translation: Any, rotation: Any) -> np.ndarray:
+    """A geometry_msgs translation and unit quaternion as a 4×4, written from the formula."""
+    x, y, z, w = rotation.x, rotation.y, rotation.z, rotation.w
+    matrix = np.eye(4)
+    matrix[:3, :3] = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+    matrix[:3, 3] = [translation.x, translation.y, translation.z]
+    return matrix

@@ -7,7 +7,8 @@ messages were logged after their header stamps (the offset ``dispeval bag`` warn
 bag`` could read it, and a ready command line is suggested, with the ``--tolerance`` the
 stamps need where the default cannot join them. Reads the first and last message of each
 topic (the last from near the end of the bag) and the first :data:`STAMP_SAMPLE` of the
-ground truth and the methods, not the whole bag.
+ground truth and the methods, not the whole bag. ``/tf`` and ``/tf_static`` are read whole
+(:mod:`~dispeval_ros.cli.info_transforms`): edges, spans and whether the camera's frame moves.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from dispeval_ros.cli.bag_cmd import add_bags_argument
+from dispeval_ros.cli.info_transforms import TransformFacts, transform_facts
 from dispeval_ros.cli.output import print_json, table
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource
@@ -108,6 +110,8 @@ class BagFacts:
     options: list[str] = field(default_factory=list)
     """The suggested ``dispeval bag`` options (empty: nothing it could score)."""
     notes: list[str] = field(default_factory=list)
+    transforms: TransformFacts | None = None
+    """What /tf and /tf_static hold (None: the bag has neither)."""
 
     def to_dict(self) -> dict[str, object]:
         """JSON form."""
@@ -128,7 +132,19 @@ class BagFacts:
             "bag_options": self.options,
             "command": command_line([self.path], self.options) if self.options else None,
             "notes": self.notes,
+            "transforms": self.transforms.to_dict() if self.transforms else None,
         }
+
+
+def _camera_frame(source: BagSource, facts: BagFacts) -> str | None:
+    """The frame of the first CameraInfo, else of the first DisparityImage: the camera's."""
+    for use in ("--camera-info", "--method"):
+        for topic in (t for t in facts.topics if t.use == use and t.count):
+            first = _first(source.messages([topic.name], on_error=_skip))
+            frame = getattr(getattr(first[2], "header", None), "frame_id", "") if first else ""
+            if frame:
+                return str(frame)
+    return None
 
 
 def bag_facts(path: Path) -> BagFacts:
@@ -151,6 +167,9 @@ def bag_facts(path: Path) -> BagFacts:
             facts.topics.append(item)
         facts.options, facts.notes = suggestion(facts)
         _tolerance(source, facts)
+        tf_topics = {t.name: t.count for t in facts.topics if t.msgtype == TF_TYPE}
+        if tf_topics:
+            facts.transforms = transform_facts(source, tf_topics, _camera_frame(source, facts))
     return facts
 
 
@@ -284,6 +303,8 @@ def _use(topic: TopicFacts) -> str:
         return "--gt-cloud"
     if topic.msgtype == TF_TYPE and topic.name == TF_STATIC_TOPIC:
         return "(the --gt-cloud extrinsic)"
+    if topic.msgtype == TF_TYPE:
+        return "(ego-motion)"
     if topic.msgtype == IMAGE_TYPE:
         if topic.encoding in GT_ENCODINGS:
             return "--gt --gt-kind depth" if "depth" in topic.name.lower() else "--gt"
@@ -396,6 +417,8 @@ def facts_text(facts: BagFacts) -> str:
     if warning:
         lines.append(f"note: {warning}")
     lines += [f"note: {note}" for note in facts.notes]
+    if facts.transforms is not None:
+        lines += facts.transforms.lines()
     return "\n".join(lines)
 
 

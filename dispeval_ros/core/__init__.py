@@ -79,6 +79,7 @@ __getattr__, __dir__ = lazy_exports(
             "PreparedEstimate",
             "TemporalScorer",
         ),
+        "dispeval_ros.core.transform_history": ("TransformHistory",),
         "dispeval_ros.core.transforms": (
             "StaticTransform",
             "TransformTree",
@@ -142,6 +143,7 @@ if TYPE_CHECKING:
         PreparedEstimate,
         TemporalScorer,
     )
+    from dispeval_ros.core.transform_history import TransformHistory
     from dispeval_ros.core.transforms import StaticTransform, TransformTree
 
 __all__ = [
@@ -176,6 +178,7 @@ __all__ = [
     "StaticTransform",
     "TemporalScorer",
     "TemporalSums",
+    "TransformHistory",
     "TransformTree",
     "VisibilityOptions",
     "astar_groups",

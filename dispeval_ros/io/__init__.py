@@ -44,6 +44,7 @@ __getattr__, __dir__ = lazy_exports(
             "Scene",
             "list_frames",
             "load_scene",
+    "odometry_from_msg",
         ),
         "dispeval_ros.io.store": (
             "FrameScores",
@@ -54,6 +55,10 @@ __getattr__, __dir__ = lazy_exports(
         "dispeval_ros.io.tables": (
             "read_objectives_csv",
             "write_objectives_csv",
+        ),
+        "dispeval_ros.io.tf_messages": (
+            "odometry_from_msg",
+            "transforms_from_msg",
         ),
     },
 )
@@ -89,6 +94,7 @@ if TYPE_CHECKING:
     from dispeval_ros.io.scenes import Scene, list_frames, load_scene
     from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
     from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
+    from dispeval_ros.io.tf_messages import odometry_from_msg, transforms_from_msg
 
 __all__ = [
     "BagSource",
@@ -110,6 +116,7 @@ __all__ = [
     "image_from_msg",
     "list_frames",
     "load_scene",
+    "odometry_from_msg",
     "read_calib",
     "read_disparity",
     "read_extrinsic",
@@ -121,6 +128,7 @@ __all__ = [
     "read_velodyne_bin",
     "require_topic",
     "stamp_ns",
+    "transforms_from_msg",
     "write_disparity_png16",
     "write_objectives_csv",
     "write_pfm",

@@ -39,7 +39,7 @@ from dispeval_ros.io.files import read_disparity
 from dispeval_ros.io.scenes import list_frames
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
-from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, simulate_scan
+from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, rig_motion, simulate_scan
 from dispeval_ros.testbed.scene import driving_setup, driving_world_at
 
 LEFT_IMAGE = "/stereo/left/image_rect"
@@ -97,6 +97,9 @@ class BagFrame:
     """odom → base_link (4×4) at ``stamps.odometry``: the vehicle's ego-motion, on /tf."""
     lidar_mount: np.ndarray | None = None
     """base_link → LiDAR (4×4) of a real vehicle (default :data:`LIDAR_MOUNT`)."""
+    camera_mount: np.ndarray | None = None
+    """base_link → left optical (4×4) on /tf_static for a frame with ``odometry`` but no scan
+    (with a scan, :func:`static_transforms` derives it from ``cloud_to_camera``)."""
     number: int | None = None
     """The frame's number in its source's file names (``--est`` files are named by it)."""
     gt_source: str = ""
@@ -112,6 +115,17 @@ def static_transforms(
         StaticTransform(BASE_FRAME, LIDAR_FRAME, mount),
         StaticTransform(BASE_FRAME, CAMERA_FRAME, camera_pose),
     ]
+
+
+def _mount_edges(frame: BagFrame, stamps: StreamStamps) -> tuple[list[StaticTransform], int] | None:
+    """/tf_static of a frame with a scan or a camera mount, and its stamp (before its users)."""
+    if frame.cloud is not None and frame.cloud_to_camera is not None:
+        mount = LIDAR_MOUNT if frame.lidar_mount is None else frame.lidar_mount
+        return static_transforms(frame.cloud_to_camera, mount), min(stamps.left, stamps.cloud)
+    if frame.camera_mount is not None:
+        edges = [StaticTransform(BASE_FRAME, CAMERA_FRAME, frame.camera_mount)]
+        return edges, min(stamps.left, stamps.odometry)
+    return None
 
 
 def bag_config(methods: Sequence[str]) -> CoreConfig:
@@ -365,6 +379,7 @@ def write_bag(
     written = 0
     clouds = 0
     poses = 0
+    mounted = False  # /tf_static written
     cloud_offset = 0
     has_gt = False
     gt_source = ""
@@ -394,14 +409,15 @@ def write_bag(
             stamps = frame.stamps or StreamStamps(synthetic, synthetic, synthetic, synthetic)
             stamp = stamps.left
             camera = frame.camera
+            mount_edges = None if mounted else _mount_edges(frame, stamps)
+            if mount_edges is not None:  # latched once, as a static_transform_publisher does
+                edges, first = mount_edges
+                bag.add_topic(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage")
+                bag.write(TF_STATIC_TOPIC, first, tf_static_to_msg(typestore, edges, first))
+                mounted = True
             if frame.cloud is not None and frame.cloud_to_camera is not None:
-                if clouds == 0:  # latched once, as a robot's static_transform_publisher does
-                    bag.add_topic(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage")
+                if clouds == 0:
                     bag.add_topic(CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2")
-                    mount = LIDAR_MOUNT if frame.lidar_mount is None else frame.lidar_mount
-                    edges = static_transforms(frame.cloud_to_camera, mount)
-                    first = min(stamp, stamps.cloud)  # before the first message that needs it
-                    bag.write(TF_STATIC_TOPIC, first, tf_static_to_msg(typestore, edges, first))
                 cloud = cloud_to_msg(typestore, frame.cloud, stamps.cloud, LIDAR_FRAME)
                 bag.write(CLOUD_TOPIC, stamps.cloud + 2_000_000, cloud)
                 cloud_offset = max(cloud_offset, abs(stamps.cloud - stamp))
@@ -492,6 +508,8 @@ def write_bag(
                 "cloud_offset_ms": cloud_offset / 1e6,
             }
             if clouds
+            else {"tf_static": TF_STATIC_TOPIC}
+            if mounted
             else {}
         ),
         **({"tf": TF_TOPIC} if poses else {}),
@@ -510,11 +528,24 @@ def synthetic_frames(
     fps: float,
     seed: int,
     lidar: LidarModel | None = None,
+    *,
+    odometry: bool = True,
 ) -> Iterator[BagFrame]:
-    """The synthetic driving sequence of the test-bed, with a LiDAR's scans if ``lidar``."""
+    """The synthetic driving sequence of the test-bed, with a LiDAR's scans if ``lidar``.
+
+    With ``odometry`` each frame carries the drive's exact motion as odom → base_link (odom:
+    base_link at the first frame), base_link being where the LiDAR's mount puts it whether or
+    not the scans are simulated, so ego-motion can be scored from the bag's /tf.
+    """
     world, rig = driving_setup(width, height, fps, seed)
+    mount = LIDAR_MOUNT @ invert_rigid(lidar_to_camera(rig, lidar))  # base_link → camera
     for index, frame in enumerate(make_driving_sequence(n_frames, width, height, fps, seed)):
         bag_frame = dataclasses.replace(from_stereo_frame(frame), principal=(rig.cx, rig.cy))
+        if odometry:
+            motion = rig_motion(rig, rig.at(frame.stamp))
+            bag_frame = dataclasses.replace(
+                bag_frame, odometry=mount @ motion @ invert_rigid(mount), camera_mount=mount
+            )
         if lidar is not None:
             world_t, rig_t = driving_world_at(world, rig, index / fps)
             bag_frame = dataclasses.replace(

@@ -111,6 +111,17 @@ def lidar_to_camera(rig: StereoRig, model: LidarModel | None = None) -> np.ndarr
     return transform
 
 
+def rig_motion(rig: StereoRig, later: StereoRig) -> np.ndarray:
+    """The left camera's pose at ``later`` in its optical frame at ``rig`` (4×4).
+
+    The rig never turns, so the motion is the step between the two optical centres in the
+    optical axes: the exact ego-motion a drive's /tf carries (:func:`lidar_to_camera`'s axes).
+    """
+    motion = np.eye(4)
+    motion[:3, 3] = _OPTICAL_AXES @ np.subtract(later.position, rig.position)
+    return motion
+
+
 @dataclass(frozen=True)
 class ScanCheck:
     """How a projected scan compares with what the left camera sees exactly.

@@ -20,6 +20,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from bag_support import quaternion_matrix
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from sample_feed import stored_scores
@@ -223,23 +224,11 @@ def raw_bag(
     return bag
 
 
-def _quaternion_matrix(translation: Any, rotation: Any) -> np.ndarray:
-    x, y, z, w = rotation.x, rotation.y, rotation.z, rotation.w
-    matrix = np.eye(4)
-    matrix[:3, :3] = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ]
-    matrix[:3, 3] = [translation.x, translation.y, translation.z]
-    return matrix
-
-
 def _bag_geometry(bag: Path) -> np.ndarray:
     """``P_left · (base_link → camera)⁻¹ · (base_link → velodyne)`` as the bag carries it."""
     ((_, tf_static),) = _messages(bag, "/tf_static")
     edges = {
-        t.child_frame_id: _quaternion_matrix(t.transform.translation, t.transform.rotation)
+        t.child_frame_id: quaternion_matrix(t.transform.translation, t.transform.rotation)
         for t in tf_static.transforms
         if t.header.frame_id == "base_link"
     }
@@ -334,7 +323,7 @@ def test_streams_keep_their_stamps_and_tf_follows_the_oxts(raw_bag: Path, drive:
         (edge,) = msg.transforms
         assert (edge.header.frame_id, edge.child_frame_id) == ("odom", "base_link")
         assert edge.header.stamp.sec * 10**9 + edge.header.stamp.nanosec == stamp == log_time
-        matrix = _quaternion_matrix(edge.transform.translation, edge.transform.rotation)
+        matrix = quaternion_matrix(edge.transform.translation, edge.transform.rotation)
         np.testing.assert_allclose(matrix[:3, 3], pose[:3, 3], rtol=0, atol=1e-6)
         np.testing.assert_allclose(matrix[:3, :3], pose[:3, :3], rtol=0, atol=1e-9)
     # base_link is the oxts unit: base_link → velodyne is calib_imu_to_velo inverted.
@@ -344,7 +333,7 @@ def test_streams_keep_their_stamps_and_tf_follows_the_oxts(raw_bag: Path, drive:
     ((_, tf_static),) = _messages(raw_bag, "/tf_static")
     (mount,) = [t for t in tf_static.transforms if t.child_frame_id == "velodyne"]
     assert mount.header.frame_id == "base_link"
-    carried = _quaternion_matrix(mount.transform.translation, mount.transform.rotation)
+    carried = quaternion_matrix(mount.transform.translation, mount.transform.rotation)
     np.testing.assert_allclose(carried, np.linalg.inv(imu_to_velo), atol=1e-5)
     # About 7.4 m/s: the last of 11 samples (1.03 s) is 7–8 m ahead of the first.
     assert 7.0 < float(np.linalg.norm(poses[-1][:3, 3])) < 8.0
