@@ -9,6 +9,11 @@ gaps are planned as for ``--temporal`` (:func:`~dispeval_ros.cli.temporal_eval.f
 a pair whose pose is unusable is a problem line, the others are scored. Criteria are the
 ground-truth-free ones of frame ``t``'s images, labelled ``gtfree:`` so they never pass for
 accuracy; a constant offset is fitted and removed per pair, so this is noise, not bias.
+
+Beside it, on the same pairs, each method's LiDAR drift between scans
+(:func:`~dispeval_ros.core.lidar_drift.lidar_drift`: the change of its error against the
+projected scans along the motion), by the criteria of frame ``t``'s scan labelled ``drift:``:
+also temporal noise, never accuracy.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,12 +29,13 @@ import numpy as np
 
 from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, wrapped
+from dispeval_ros.cli.summary import EGOMOTION_LABEL as LABEL
+from dispeval_ros.cli.summary import EGOMOTION_MASKED as MASKED
 from dispeval_ros.cli.summary import fitted_tables
 from dispeval_ros.cli.temporal_eval import Estimates, Runs, frame_runs
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.egomotion import (
-    STATUS_NAMES,
     EgoMotionOptions,
     MotionFrame,
     PinholeCamera,
@@ -38,20 +44,38 @@ from dispeval_ros.core.egomotion import (
     egomotion_residual,
     prepare_frame,
 )
-from dispeval_ros.core.measures import GT_FREE_PREFIX
+from dispeval_ros.core.evaluator import Reference
+from dispeval_ros.core.lidar_drift import (
+    PREFIX as DRIFT_PREFIX,
+)
+from dispeval_ros.core.lidar_drift import (
+    STATUS_NAMES as DRIFT_STATUS,
+)
+from dispeval_ros.core.lidar_drift import (
+    DriftOptions,
+    DriftSums,
+    coded_estimate,
+    lidar_drift,
+)
+from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS, GT_FREE_PREFIX
 from dispeval_ros.errors import ConfigurationError, DispevalError
 
 OPTION = "--egomotion"
-LABEL = (
-    "ground-truth-free: temporal noise of the estimate moved by the camera's motion, no GT; "
-    "not bias (a constant offset is fitted and removed per pair)"
-)
-"""What every ``--egomotion`` output says it is (the text title and the JSON ``label``)."""
 POSES = "KITTI raw oxts (convertOxtsToPose) carried to the left camera by calib_imu_to_velo"
 UNITS = {"mean_abs": "px", "mean": "px", "rms": "px", "mean_abs_z": "m", "rms_z": "m"}
 """The units of the values (``bad_X``: % of the counted pixels)."""
-MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
-"""The mask counts of the table, in the order the masks apply."""
+DRIFT_UNITS = {
+    "counted": "% of the points", "mean": "px", "rms": "px", "bias_drift": "px",
+    "mean_error": "px",
+}  # fmt: skip
+"""The units of the drift's values (``bad_X``: % of the counted points)."""
+DRIFT_LABEL = (
+    "temporal noise against the LiDAR scans: the change of each point's error from scan t to "
+    "scan t + k along the motion (static world); a constant bias drifts 0; not accuracy"
+)
+"""What the drift's outputs say it is (the text title and the JSON ``label``)."""
+DRIFT_DROPPED = tuple(f"n_{name}" for name in DRIFT_STATUS[1:])
+"""The drop counts of the drift table, in the order the tests apply."""
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -61,7 +85,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="with --scene of a KITTI raw drive: also score each method's ego-motion residual "
         "(temporal noise without GT: frame t's estimate moved by the oxts motion into frame "
-        "t + k, compared with the estimate there; docs/method.md)",
+        "t + k, compared with the estimate there) and its LiDAR drift between scans (the "
+        "change of its error against scan t's points moved into frame t + k; docs/method.md)",
     )
     parser.add_argument(
         "--egomotion-step",
@@ -159,6 +184,9 @@ class EgoResult:
     options: EgoMotionOptions
     methods: dict[str, MethodMotion]
     problems: list[str]
+    drift_options: DriftOptions
+    drift: dict[str, DriftSums | None]
+    """Each method's LiDAR drift pooled over its pairs (None: no pair scored)."""
 
     def to_dict(self) -> dict[str, object]:
         """The JSON ``egomotion`` entry (also stored with ``--out``)."""
@@ -175,7 +203,68 @@ class EgoResult:
             "methods": {name: _method_dict(one) for name, one in self.methods.items()},
             "gaps": [gap.to_dict() for gap in self.plan.runs.gaps],
             "problems": self.problems,
+            "lidar_drift": self._drift_dict(),
         }
+
+    def _drift_dict(self) -> dict[str, object]:
+        """The ``lidar_drift`` entry: label, options, units, per method values and sums."""
+        chosen = self.drift_options
+        methods: dict[str, object] = {}
+        for name, pooled in self.drift.items():
+            if pooled is None:
+                methods[name] = {"criteria": None, "sums": None}
+                continue
+            labels = [DRIFT_PREFIX + c for c in pooled.criteria]
+            methods[name] = {
+                "criteria": {
+                    n: pooled.summary(c) for n, c in zip(labels, pooled.criteria, strict=True)
+                },
+                "sums": {
+                    n: dict(zip(pooled.columns, row.tolist(), strict=True))
+                    for n, row in zip(labels, pooled.sums, strict=True)
+                },
+            }
+        return {
+            "measure": "lidar_drift",
+            "label": DRIFT_LABEL,
+            "options": {
+                "missing": chosen.missing,
+                "visibility": str(chosen.visibility),
+                "thresholds": list(chosen.thresholds),
+            },
+            "units": {
+                **DRIFT_UNITS,
+                **{f"bad_{t:g}": "%" for t in chosen.thresholds},
+            },
+            "methods": methods,
+        }
+
+    def drift_text(self) -> str:
+        """The drift table: criterion, method, points, counted, drift values, drop counts."""
+        bad = [f"bad_{t:g}" for t in self.drift_options.thresholds]
+        header = [
+            "criterion", "method", "points", "counted [%]", "mean [px]", "rms [px]",
+            *(f"{b} [%]" for b in bad), "bias_drift [px]", *DRIFT_DROPPED,
+        ]  # fmt: skip
+        rows: list[list[object]] = []
+        scored = {m: pooled for m, pooled in self.drift.items() if pooled is not None}
+        for criterion in next(iter(scored.values())).criteria if scored else ():
+            for method, pooled in scored.items():
+                one = pooled.summary(criterion)
+                rows.append([
+                    DRIFT_PREFIX + criterion, method, int(one["n"]), one["counted"],
+                    one["mean"], one["rms"], *(one[b] for b in bad), one["bias_drift"],
+                    *(int(one[d]) for d in DRIFT_DROPPED),
+                ])  # fmt: skip
+        visibility = self.drift_options.visibility
+        title = wrapped(
+            f"LiDAR drift between scans ({DRIFT_LABEL}; missing estimates: "
+            f"{self.drift_options.missing}; hidden: a point of scan t + k nearer by more than "
+            f"{100 * visibility.gap:g} % within {visibility.window}×{visibility.window} px)"
+        )
+        return (
+            title + "\n" + (fitted_tables(header, rows, keep=2) if rows else "no pair was scored")
+        )
 
     def text(self) -> str:
         """A table (criterion, method, counted pixels, residuals, mask counts), runs, gaps."""
@@ -211,6 +300,7 @@ class EgoResult:
             lines.append(wrapped(text))
         lines += [wrapped("gap: " + gap.text()) for gap in self.plan.runs.gaps]
         lines += [wrapped("problem: " + problem) for problem in self.problems]
+        lines.append("\n" + self.drift_text())
         return "\n".join(lines)
 
 
@@ -233,9 +323,15 @@ def _method_dict(one: MethodMotion) -> dict[str, object]:
 
 
 def score(
-    motion: EgoPlan | None, args: argparse.Namespace, camera: Camera | None
+    motion: EgoPlan | None,
+    args: argparse.Namespace,
+    camera: Camera | None,
+    references: Mapping[str | None, Reference | None],
 ) -> EgoResult | None:
-    """Score every planned pair of every method (None without ``--egomotion``)."""
+    """Score every planned pair of every method (None without ``--egomotion``).
+
+    ``references``: each frame's projected scan and criteria, by frame name (the drift's).
+    """
     from dispeval_ros.io import read_disparity
     from dispeval_ros.io.files import read_stereo_pair
 
@@ -251,6 +347,11 @@ def score(
         {p for method_runs in runs.values() for r in method_runs for p in itertools.pairwise(r)}
     )
     sums: dict[str, list[TemporalSums]] = {method: [] for method in runs}
+    drift_options = DriftOptions(
+        missing=args.missing, thresholds=tuple(sorted({args.delta, *DEFAULT_BAD_THRESHOLDS}))
+    )
+    drift: dict[str, DriftSums | None] = dict.fromkeys(runs)
+    coded: dict[tuple[str, int], np.ndarray] = {}
     images: dict[int, tuple[np.ndarray, crit.Partition]] = {}
     prepared: dict[tuple[str, int], MotionFrame] = {}
     problems: list[str] = []
@@ -272,6 +373,8 @@ def score(
             del images[index]
         for key in [key for key in prepared if key[1] < a]:
             del prepared[key]
+        for key in [key for key in coded if key[1] < a]:
+            del coded[key]
         methods = [
             m for m, method_runs in runs.items() if any(_pairs(r, a, b) for r in method_runs)
         ]
@@ -295,6 +398,20 @@ def score(
                         frame(method, a), frame(method, b), moved, pinhole, partition, options
                     )
                 )
+                for index in (a, b):
+                    if (method, index) not in coded:
+                        coded[method, index] = coded_estimate(
+                            frame(method, index).disparity, drift_options.missing
+                        )
+                reference, target = references[names[a]], references[names[b]]
+                if reference is None or target is None:
+                    continue  # pragma: no cover - every frame of a KITTI raw drive has its scan
+                one = lidar_drift(
+                    reference.gt, target.gt, coded[method, a], coded[method, b], moved,
+                    pinhole, reference.partition, drift_options,
+                )  # fmt: skip
+                pooled = drift[method]
+                drift[method] = one if pooled is None else pooled + one
         except DispevalError as error:
             raise type(error)(f"--egomotion, {where}: {error}") from None
     return EgoResult(
@@ -302,6 +419,8 @@ def score(
         options,
         {method: _pooled(names, runs[method], sums[method]) for method in runs},
         problems,
+        drift_options,
+        drift,
     )
 
 

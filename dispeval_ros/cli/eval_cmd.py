@@ -564,7 +564,8 @@ def run(args: argparse.Namespace) -> int:
     scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
     references = [s.reference for s in scored]
     temporal = temporal_eval.score(pairs, evaluator, references, args.est_scale)
-    ego = egomotion_eval.score(motion, args, frames[0].camera)
+    by_frame = {f.frame: r for f, r in zip(frames, references, strict=True)}
+    ego = egomotion_eval.score(motion, args, frames[0].camera, by_frame)
     done = [(n, r) for n, r in (("temporal", temporal), ("egomotion", ego)) if r is not None]
     result: dict[str, object] = {name: one.to_dict() for name, one in done}
     inputs = [path for s in scored for path in s.frame.inputs]

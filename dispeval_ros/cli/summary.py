@@ -7,6 +7,7 @@ from typing import Any
 
 from dispeval_ros.cli.output import plural, table, text_width, wrapped
 from dispeval_ros.core import ModelResult
+from dispeval_ros.core.egomotion import STATUS_NAMES
 from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
 from dispeval_ros.core.objectives import has_points
 from dispeval_ros.core.timing import TIMING_MEASURES, WINDOW_NS
@@ -253,14 +254,22 @@ def temporal_text(pairs: Mapping[str, Any] | None, preset: str) -> str:
     return wrapped(title) + "\n" + table_text
 
 
+EGOMOTION_LABEL = (
+    "ground-truth-free: temporal noise of the estimate moved by the camera's motion, no GT; "
+    "not bias (a constant offset is fitted and removed per pair)"
+)
+"""What every ego-motion residual output says it is (``eval --egomotion``'s text title and
+JSON ``label``, the bag tables' title)."""
+EGOMOTION_MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
+"""The mask counts of the residual's tables, in the order the masks apply."""
+
+
 def egomotion_text(motion: Mapping[str, Any] | None) -> str:
     """A sequence's ego-motion residuals (``egomotion``), or why there are none.
 
     ``motion``: method → (pairs, pooled :class:`~dispeval_ros.core.egomotion.TemporalSums`);
     None: not recorded; empty: no pair.
     """
-    from dispeval_ros.cli.egomotion_eval import LABEL, MASKED
-
     if motion is None:
         return wrapped("\nego-motion residual: not recorded (results older than it)")
     if not motion:
@@ -269,7 +278,7 @@ def egomotion_text(motion: Mapping[str, Any] | None) -> str:
     bad = [f"bad_{t:g}" for t in first.thresholds]
     header = [
         "criterion", "method", "pairs", "n_residual", "mean_abs [px]", "rms [px]",
-        *(f"{b} [%]" for b in bad), "mean_abs_z [m]", "rms_z [m]", *MASKED,
+        *(f"{b} [%]" for b in bad), "mean_abs_z [m]", "rms_z [m]", *EGOMOTION_MASKED,
     ]  # fmt: skip
     rows: list[list[object]] = []
     for criterion in first.criteria:
@@ -278,9 +287,11 @@ def egomotion_text(motion: Mapping[str, Any] | None) -> str:
             rows.append([
                 GT_FREE_PREFIX + criterion, method, pairs, int(one["n_residual"]),
                 one["mean_abs"], one["rms"], *(one[b] for b in bad), one["mean_abs_z"],
-                one["rms_z"], *(int(one[m]) for m in MASKED),
+                one["rms_z"], *(int(one[m]) for m in EGOMOTION_MASKED),
             ])  # fmt: skip
-    title = f"\nego-motion residual of each method's pairs of consecutive frames ({LABEL})"
+    title = (
+        f"\nego-motion residual of each method's pairs of consecutive frames ({EGOMOTION_LABEL})"
+    )
     return wrapped(title) + "\n" + fitted_tables(header, rows, keep=2)
 
 

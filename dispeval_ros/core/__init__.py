@@ -41,6 +41,12 @@ __getattr__, __dir__ = lazy_exports(
             "GroundTruthFree",
             "ImagePair",
         ),
+        "dispeval_ros.core.lidar_drift": (
+            "DriftOptions",
+            "DriftSums",
+            "coded_estimate",
+            "lidar_drift",
+        ),
         "dispeval_ros.core.measures": (
             "DEFAULT_MEASURES",
             "HIGHER_IS_BETTER",
@@ -109,6 +115,7 @@ if TYPE_CHECKING:
     )
     from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, POLICIES, Evaluator, Reference
     from dispeval_ros.core.gtfree import GroundTruthFree, ImagePair
+    from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, coded_estimate, lidar_drift
     from dispeval_ros.core.measures import (
         DEFAULT_MEASURES,
         HIGHER_IS_BETTER,
@@ -157,6 +164,8 @@ __all__ = [
     "CloudFilter",
     "CloudProjection",
     "CriterionSet",
+    "DriftOptions",
+    "DriftSums",
     "EgoMotionOptions",
     "Evaluator",
     "FlickerWindow",
@@ -183,6 +192,7 @@ __all__ = [
     "VisibilityOptions",
     "astar_groups",
     "build_partition",
+    "coded_estimate",
     "dominates",
     "egomotion_residual",
     "evaluate_frame",
@@ -191,6 +201,7 @@ __all__ = [
     "front_reduction",
     "get_protocol",
     "interpretation",
+    "lidar_drift",
     "measure_consistency",
     "middlebury_ranks",
     "pareto_front",

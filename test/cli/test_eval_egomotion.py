@@ -398,7 +398,9 @@ def test_the_readme_example_prints_the_readme_numbers(
         assert document["egomotion"]["methods"][method]["pairs"] == 10
         assert cells[:3] == [f"{one[k]:.2f}" for k in ("mean_abs", "rms", "bad_2")]
         assert cells[3] == f"{100 * one['n_residual'] / one['n']:.1f}"
-        assert cells[4:] == [f"{lidar[method][k]:.2f}" for k in ("mae", "bmp", "d1")]
+        drift = document["egomotion"]["lidar_drift"]["methods"][method]["criteria"]["drift:all"]
+        assert cells[4:7] == [f"{drift[k]:.2f}" for k in ("mean", "rms", "bad_1")]
+        assert cells[7:] == [f"{lidar[method][k]:.2f}" for k in ("mae", "bmp", "d1")]
     text = " ".join(text.split())
     assert (
         f"scans, pooled over the 11 frames (`results/summary.json`, {lidar['sgbm']['n']} " in text
