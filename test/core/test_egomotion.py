@@ -289,6 +289,24 @@ def test_the_kernels_agree_with_plain_numpy_on_the_drive():
     assert set(np.unique(status)) == set(range(7))  # every mask took part
 
 
+@pytest.mark.parametrize("thresholds", [(0.5,), (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5)])
+def test_any_number_of_thresholds_agrees_with_plain_numpy(thresholds):
+    """The row sums count three thresholds in their main pass and the rest three at a time."""
+    (f0, _, _), (f1, _, _) = drive_frame(0), drive_frame(1)
+    rng = np.random.default_rng(5)
+    e0 = f0.gt_left + rng.normal(0, 0.3, f0.gt_left.shape).astype(np.float32)
+    e1 = f1.gt_left + rng.normal(0, 0.3, f1.gt_left.shape).astype(np.float32)
+    options = EgoMotionOptions(fit_offset=False, thresholds=thresholds)
+    source, target = prepare_frame(e0, f0.left), prepare_frame(e1, f1.left)
+    result = egomotion_residual(source, target, drive_motion(0, 1), drive_camera(), None, options)
+    sums, _, _ = numpy_residual(source, target, drive_motion(0, 1), drive_camera(), options, 0.0)
+    assert result.columns[-len(thresholds) :] == tuple(f"bad_{t:g}" for t in thresholds)
+    bad = sums[0, len(BASE_COLUMNS) :]
+    assert np.all(np.diff(bad) < 0)  # every threshold counts something different
+    np.testing.assert_array_equal(result.sums[0, len(BASE_COLUMNS) :], bad)  # counts: exact
+    np.testing.assert_allclose(result.sums, sums, rtol=1e-6, atol=1e-6)
+
+
 # --------------------------------------------------------------------------------------------
 # Hand-worked cases
 
@@ -489,6 +507,28 @@ def test_flicker_is_the_per_pixel_sample_spread():
     still = flicker([prepare_frame(truth)] * 3, camera).summary("all")
     assert still["mean_abs"] == 0.0
     assert still["n_residual"] > 0
+
+
+@pytest.mark.parametrize("outlier", [0.0, 50.0])
+def test_flicker_of_a_long_window_far_from_zero_is_np_std(outlier):
+    """Disparities near 5000 px with a spread of 1e-3 px (plain sums of squares lose it all).
+
+    With ``outlier``, the first frame (the sums' shift) is 50 px off the others.
+    """
+    rng = np.random.default_rng(11)
+    base = 5000.0 + rng.random((12, 16)) * 10.0
+    stack = (base + rng.normal(0, 1e-3, (40, *base.shape))).astype(np.float32)
+    stack[0] += np.float32(outlier)
+    camera = Camera(f=1000.0, baseline=0.5)
+    window = FlickerWindow(camera, EgoMotionOptions(edge_gap=1e9))
+    for estimate in stack:
+        window.add(prepare_frame(estimate))
+    status, spread, spread_z = window.sums(keep_maps=True).maps
+    assert (status == 0).all()
+    values = stack.astype(np.float64)
+    # the maps are float32: 6e-8 relative, the rest of the error far below
+    np.testing.assert_allclose(spread, np.std(values, axis=0, ddof=1), rtol=3e-7)
+    np.testing.assert_allclose(spread_z, np.std(camera.fb / values, axis=0, ddof=1), rtol=3e-7)
 
 
 def test_flicker_masks_edges_and_changing_intensity():

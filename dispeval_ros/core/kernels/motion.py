@@ -8,10 +8,13 @@ the camera at ``t + k``, where it lands at ``(cx + f·Qx/Qz, cy + f·Qy/Qz)`` wi
 disparity ``f·B/Qz − doffs``. ``rt`` is the 3×4 ``[R | T]``; ``geo`` is ``(f, cx, cy, f·B,
 doffs)``. The offset fit's loops (a sparse grid) are in :mod:`.motion_fit`.
 
-Every loop keeps the exact IEEE operations of the definition (no fast-math outside the sums),
-so restructuring for speed changes no result: per row, vectorised passes for the geometry and
-the masks, bare scalar loads for the gathers (numba's wrap-around of negative indices avoided
-by unsigned ones), one scattered write per point into the z-buffer.
+No fast-math outside the sums (NaN and the masks' comparisons are relied on). The landing is
+computed homogeneously (one division per pixel instead of two, :func:`_landing`): the same
+values to about 1e-16 relative, so a status changes only where a float64 rounding decides a
+tie (the tests compare every status with numpy). Per row: one vectorised pass for the
+geometry, bare scalar loads for the gathers (numba's wrap-around of negative indices avoided
+by unsigned ones) blended in vectorised passes, one scattered write per point into the
+z-buffer, one vectorised pass for the masks and residuals.
 """
 
 from __future__ import annotations
@@ -36,78 +39,6 @@ COL_BAD = COL_SUM_SQ_Z + 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _row_geometry(
-    row: np.ndarray,
-    us: np.ndarray,
-    y: int,
-    rt: np.ndarray,
-    geo: np.ndarray,
-    offset: float,
-    box: tuple[float, float, float, float],
-    out: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-) -> None:  # pragma: no cover - compiled
-    """Landing ``(x', y')``, predicted disparity, ``Qz`` and "lands in ``box``" of one row.
-
-    Branch-free, so it vectorises: a missing estimate (NaN), no depth (``s ≤ 0``) or a point
-    behind the camera fail the comparisons and land nowhere. ``us``: ``(x − cx)/f`` of every
-    column (:func:`_columns`: one division per column, not per pixel). ``box`` is (x_lo, x_hi,
-    y_lo, y_hi) of the landings kept.
-    """
-    xs, ys, predicted, depth, lands = out
-    f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
-    v = (y - cy) / f
-    bx = rt[0, 1] * v + rt[0, 2]
-    by = rt[1, 1] * v + rt[1, 2]
-    bz = rt[2, 1] * v + rt[2, 2]
-    x_lo, x_hi, y_lo, y_hi = box
-    for x in range(row.shape[0]):
-        s = np.float64(row[x]) - offset + doffs
-        z = fb / s
-        u = us[x]
-        qz = z * (rt[2, 0] * u + bz) + rt[2, 3]
-        inverse = 1.0 / qz
-        xp = cx + f * (z * (rt[0, 0] * u + bx) + rt[0, 3]) * inverse
-        yp = cy + f * (z * (rt[1, 0] * u + by) + rt[1, 3]) * inverse
-        ok = (s > 0.0) & (qz > 0.0) & (xp >= x_lo) & (xp <= x_hi) & (yp >= y_lo) & (yp <= y_hi)
-        xs[x] = xp if ok else 0.0
-        ys[x] = yp if ok else 0.0
-        predicted[x] = fb * inverse - doffs
-        depth[x] = qz
-        lands[x] = ok
-
-
-Row = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
-XS, YS, PREDICTED, DEPTH, WX, WY, NEAREST = 0, 1, 2, 3, 4, 5, 6
-"""Rows of the float64 row scratch."""
-CORNER, NEAR = 0, 1
-"""Rows of the int64 row scratch: flat index of the support's corner and of the nearest pixel."""
-LANDS, TARGET_EDGE = 0, 1
-"""Rows of the bool row scratch."""
-
-
-def row_buffers(width: int) -> Row:
-    """Scratch of one row: float64 rows, a support's values, int64 flat indices, bool rows.
-
-    A bilinear support's four values are float32: exact for a disparity or a grey level.
-    """
-    return (
-        np.empty((NEAREST + 1, width), np.float64),
-        np.empty((4, width), np.float32),
-        np.empty((2, width), np.int64),
-        np.empty((2, width), np.bool_),
-    )
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """``u = (x − cx)/f`` of every column, the same IEEE operations as per pixel."""
-    us = np.empty(width, np.float64)
-    for x in range(width):
-        us[x] = (x - geo[1]) / geo[0]
-    return us
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _landing(
     row: np.ndarray,
     us: np.ndarray,
@@ -118,35 +49,105 @@ def _landing(
     box: tuple[float, float, float, float],
     shape: tuple[int, int],
     scratch: Row,
+    full: bool,
 ) -> None:  # pragma: no cover - compiled
-    """:func:`_row_geometry` of one row, then each landing's support corner and nearest pixel.
+    """Where each point of one row lands: its support's corner, weights, nearest pixel, depth.
 
-    Vectorised passes only, so the gathers that follow (:func:`_gather`) are bare loads.
+    One vectorised pass, branch-free: a missing estimate (NaN), no depth (``s ≤ 0``) or a
+    point behind the camera fail the comparisons and land nowhere (at 0, so every gather
+    stays inside). Homogeneous, so one division per pixel: with ``s = e − b + doffs`` and
+    ``A = R·((x − cx)/f, (y − cy)/f, 1)``, ``Q = (f·B·A + s·T)/s``, so ``w = f·B·Az + s·Tz``
+    is ``Qz·s`` and ``x' = cx + f·(f·B·Ax + s·Tx)/w``, the predicted disparity ``f·B·s/w −
+    doffs``. ``us``: ``(x − cx)/f`` of every column (:func:`_columns`). ``box`` is (x_lo, x_hi,
+    y_lo, y_hi) of the landings kept. ``full`` (a constant where inlined): also the nearest
+    pixel, ``s`` and ``w`` (the depth is ``w/s``), which the z-buffer does not need.
     """
-    values, _, index, marks = scratch
-    xs, ys, wx, wy = values[XS], values[YS], values[WX], values[WY]
-    _row_geometry(
-        row, us, y, rt, geo, offset, box, (xs, ys, values[PREDICTED], values[DEPTH], marks[LANDS])
-    )
+    values, index, marks = scratch
+    ss, ws, predicted = values[S], values[W], values[PREDICTED]
+    wx, wy = values[WX], values[WY]
+    corner, near, lands = index[CORNER], index[NEAR], marks[LANDS]
+    f, cx, cy, fb, doffs = geo[0], geo[1], geo[2], geo[3], geo[4]
+    v = (y - cy) / f
+    ax, ay, az = fb * rt[0, 0], fb * rt[1, 0], fb * rt[2, 0]
+    bx = fb * (rt[0, 1] * v + rt[0, 2])
+    by = fb * (rt[1, 1] * v + rt[1, 2])
+    bz = fb * (rt[2, 1] * v + rt[2, 2])
+    tx, ty, tz = rt[0, 3], rt[1, 3], rt[2, 3]
+    x_lo, x_hi, y_lo, y_hi = box
     height, width = shape
-    corner, near = index[CORNER], index[NEAR]
-    for x in range(row.shape[0]):  # 0 where the point lands nowhere: every gather stays inside
-        x0 = min(int(xs[x]), width - 2)
-        y0 = min(int(ys[x]), height - 2)
-        wx[x] = xs[x] - x0
-        wy[x] = ys[x] - y0
-        corner[x] = y0 * width + x0
-        near[x] = int(ys[x] + 0.5) * width + int(xs[x] + 0.5)
+    for x in range(row.shape[0]):
+        s = np.float64(row[x]) - offset + doffs
+        u = us[x]
+        w = az * u + bz + tz * s
+        inverse = 1.0 / w
+        xp = cx + f * (ax * u + bx + tx * s) * inverse
+        yp = cy + f * (ay * u + by + ty * s) * inverse
+        ok = (s > 0.0) & (w > 0.0) & (xp >= x_lo) & (xp <= x_hi) & (yp >= y_lo) & (yp <= y_hi)
+        xp = xp if ok else 0.0
+        yp = yp if ok else 0.0
+        x0 = min(int(xp), width - 2)
+        y0 = min(int(yp), height - 2)
+        if full:
+            ss[x] = s
+            ws[x] = w
+        predicted[x] = fb * s * inverse - doffs
+        lands[x] = ok
+        fx = xp - x0
+        fy = yp - y0
+        wx[x] = fx
+        wy[x] = fy
+        corner[x] = y0 * width + x0  # the nearest pixel: the corner, or a step right or down
+        if full:
+            near[x] = y0 * width + x0 + (fx >= 0.5) + width * (fy >= 0.5)
+
+
+Row = tuple[np.ndarray, np.ndarray, np.ndarray]
+S, W, PREDICTED, WX, WY, NEAREST, SAMPLED = 0, 1, 2, 3, 4, 5, 6
+"""Rows of the float64 row scratch (``S``: ``e − b + doffs``; ``W``: ``Qz·s``)."""
+CORNER, NEAR = 0, 1
+"""Rows of the int64 row scratch: flat index of the support's corner and of the nearest pixel."""
+LANDS, TARGET_EDGE = 0, 1
+"""Rows of the bool row scratch."""
+
+
+def row_buffers(width: int) -> Row:
+    """Scratch of one row: float64 rows, int64 flat indices, bool rows."""
+    return (
+        np.empty((SAMPLED + 1, width), np.float64),
+        np.empty((2, width), np.int64),
+        np.empty((2, width), np.bool_),
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _gather(
-    flat: np.ndarray, corner: np.ndarray, width: int, quad: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """The four values of each bilinear support (``flat``: an image as one row).
+def _columns(width: int, geo: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``u = (x − cx)/f`` of every column: one division per column, not per pixel."""
+    us = np.empty(width, np.float64)
+    for x in range(width):
+        us[x] = (x - geo[1]) / geo[0]
+    return us
 
-    Unsigned indices: numba then adds no wrap-around of negative ones to each load.
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _blend(a: float, b: float, c: float, d: float, wx: float, wy: float) -> float:
+    """Bilinear value at ``(wx, wy)`` of a support ``a b / c d`` (NaN when one of them is)."""
+    top = a + wx * (b - a)
+    return top + wy * (c + wx * (d - c) - top)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _sample(
+    flat: np.ndarray, scratch: Row, width: int, quad: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """The bilinear value of ``flat`` (an image as one row) at each landing of the row.
+
+    The four support values are loaded into ``quad`` (4 × width, ``flat``'s type: bare loads,
+    no conversion), then blended (:func:`_blend`) in one vectorised pass;
+    scalar conversions in the loading loop cost more than the second pass. Unsigned indices:
+    numba then adds no wrap-around of negative ones to each load.
     """
+    values, index, _ = scratch
+    wx, wy, corner = values[WX], values[WY], index[CORNER]
     one = np.uint64(1)
     below = np.uint64(width)
     for x in range(corner.shape[0]):
@@ -155,15 +156,30 @@ def _gather(
         quad[1, x] = flat[i + one]
         quad[2, x] = flat[i + below]
         quad[3, x] = flat[i + below + one]
+    for x in range(corner.shape[0]):
+        a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
+        c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
+        out[x] = _blend(a, b, c, d, wx[x], wy[x])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _lerp(quad: np.ndarray, wx: np.ndarray, wy: np.ndarray, x: int) -> float:
-    """:func:`_bilinear` of gathered values (the same operations, so the same result)."""
-    a, b = np.float64(quad[0, x]), np.float64(quad[1, x])
-    c, d = np.float64(quad[2, x]), np.float64(quad[3, x])
-    top = a + wx[x] * (b - a)
-    return top + wy[x] * (c + wx[x] * (d - c) - top)
+def _sample_grey(
+    flat: np.ndarray, scratch: Row, width: int, levels: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """:func:`_sample` of an 8-bit image, each grey level read from ``levels`` (its float64).
+
+    A table of 256 values stays in the first-level cache; reading it is faster here than both
+    converting each byte and gathering into ``quad`` first.
+    """
+    values, index, _ = scratch
+    wx, wy, corner = values[WX], values[WY], index[CORNER]
+    one = np.uint64(1)
+    below = np.uint64(width)
+    for x in range(corner.shape[0]):
+        i = np.uint64(corner[x])
+        a, b = levels[np.uint64(flat[i])], levels[np.uint64(flat[i + one])]
+        c, d = levels[np.uint64(flat[i + below])], levels[np.uint64(flat[i + below + one])]
+        out[x] = _blend(a, b, c, d, wx[x], wy[x])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -194,27 +210,27 @@ def motion_splat(
     zbuffer[:] = -np.inf
     flat = zbuffer.reshape(-1)
     box = (0.0, np.float64(width - 1), 0.0, np.float64(height - 1))
-    values, quad, index, marks = scratch
-    predicted, wx, wy = values[PREDICTED], values[WX], values[WY]
+    values, index, marks = scratch
+    predicted, seen = values[PREDICTED], values[SAMPLED]
     corner, lands = index[CORNER], marks[LANDS]
     us = _columns(width, geo)
     src_image, tgt_image = images
     photo = src_image.shape[0] == height and tgt_image.shape[0] == height
     tgt_flat = tgt_image.reshape(-1)
+    levels = np.arange(256.0)
     for y in range(height):
-        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch)
+        _landing(source[y], us, y, rt, geo, offset, box, (height, width), scratch, False)
         flags = moving[y]
         if photo:
-            _gather(tgt_flat, corner, width, quad)
+            _sample_grey(tgt_flat, scratch, width, levels, seen)
             src_row = src_image[y]
             for x in range(width):  # branch-free: whether a point moved is not predictable
-                seen = _lerp(quad, wx, wy, x)
-                flags[x] = lands[x] & (abs(np.float64(src_row[x]) - seen) > photometric)
+                flags[x] = lands[x] & (abs(np.float64(src_row[x]) - seen[x]) > photometric)
         else:
             flags[:] = False
         for x in range(width):
             if lands[x] and not flags[x]:
-                i = corner[x]
+                i = np.uint64(corner[x])
                 flat[i] = max(flat[i], np.float32(predicted[x]))
     _support_maximum(zbuffer)
 
@@ -270,21 +286,21 @@ def motion_classify(
     fb, doffs = geo[3], geo[4]
     margin, tolerance = limits[0], limits[1]
     box = (margin, np.float64(width - 1) - margin, margin, np.float64(height - 1) - margin)
-    values, quad, index, marks = scratch
-    predicted, depth, nearest = values[PREDICTED], values[DEPTH], values[NEAREST]
-    wx, wy = values[WX], values[WY]
-    corner, near = index[CORNER], index[NEAR]
+    values, index, marks = scratch
+    ss, ws, predicted, nearest = values[S], values[W], values[PREDICTED], values[NEAREST]
+    sampled = values[SAMPLED]
+    near = index[NEAR]
     lands, tgt_edge = marks[LANDS], marks[TARGET_EDGE]
     us = _columns(width, geo)
     tgt_flat = tgt.reshape(-1)
+    quad = np.empty((4, width), tgt.dtype)
     z_flat = zbuffer.reshape(-1)
     edges_flat = tgt_edges.reshape(-1)
     for y in range(height):
-        row = src[y]
-        _landing(row, us, y, rt, geo, offset, box, (height, width), scratch)
-        _gather(tgt_flat, corner, width, quad)
-        for x in range(width):
-            i = near[x]
+        _landing(src[y], us, y, rt, geo, offset, box, (height, width), scratch, True)
+        _sample(tgt_flat, scratch, width, quad, sampled)
+        for x in range(width):  # unsigned: no wrap-around of negative indices
+            i = np.uint64(near[x])
             nearest[x] = z_flat[i]
             tgt_edge[x] = edges_flat[i]
         edge_row = src_edges[y]
@@ -292,32 +308,23 @@ def motion_classify(
         status_row = status_map[y]
         r_row = r_map[y]
         rz_row = rz_map[y]
-        for x in range(width):  # branch-free: masks are not predictable
-            observed = _lerp(quad, wx, wy, x) - offset
+        for x in range(width):  # selects, last mask first: the first that applies wins
+            observed = sampled[x] - offset
+            seen = observed + doffs  # NaN: a support pixel is missing
             value = predicted[x]
-            hidden = nearest[x] > np.float64(np.float32(value)) + tolerance
-            edge = edge_row[x] | tgt_edge[x]
-            status = (
-                MISSING
-                if not np.float64(row[x]) - offset + doffs > 0.0
-                else BORDER
-                if not lands[x]
-                else HIDDEN
-                if hidden
-                else MISSING_TARGET
-                if not observed + doffs > 0.0  # NaN: a support pixel is missing
-                else EDGE
-                if edge
-                else MOVING
-                if moving_row[x]
-                else COUNTED
-            )
+            s = ss[x]
+            status = MOVING if moving_row[x] else COUNTED
+            status = EDGE if edge_row[x] | tgt_edge[x] else status
+            status = MISSING_TARGET if not seen > 0.0 else status
+            status = HIDDEN if nearest[x] > np.float64(np.float32(value)) + tolerance else status
+            status = BORDER if not lands[x] else status
+            status = MISSING if not s > 0.0 else status
             counted = status == COUNTED
-            r = observed - value if counted else np.nan
-            rz = fb / (observed + doffs) - depth[x] if counted else np.nan
+            # depth at t + k minus the moved depth w/s, over one division
+            rz = (fb * s - ws[x] * seen) / (seen * s)
             status_row[x] = status
-            r_row[x] = r
-            rz_row[x] = rz
+            r_row[x] = observed - value if counted else np.nan
+            rz_row[x] = rz if counted else np.nan
         _row_sums(status_row, r_row, rz_row, cells[y], thresholds, sums)
 
 
@@ -337,7 +344,9 @@ def _row_sums(
     """Add one row's pixels to their cells (``cells`` < 0: none; ``r`` NaN unless counted).
 
     A kernel of its own, with reassociation allowed so its sums vectorise; the geometry stays
-    exact IEEE arithmetic (numpy re-computes it bit for bit).
+    IEEE arithmetic. Up to :data:`MASKED_CELLS` cells, one pass per cell gives the status
+    counts, the residual terms and the first three thresholds' counts (selects, no branches:
+    a pixel that is not counted adds zeros; thresholds are ≥ 0, so 0 is never above one).
     """
     n_cells = sums.shape[0]
     if n_cells > MASKED_CELLS:
@@ -345,59 +354,68 @@ def _row_sums(
             if cells[x] >= 0:
                 _add(sums, cells[x], status[x], r[x], rz[x], thresholds)
         return
+    limits = np.full(3 * ((thresholds.shape[0] + 2) // 3), np.inf)  # ∞: never exceeded
+    limits[: thresholds.shape[0]] = thresholds
+    t0, t1, t2 = limits[0], limits[1], limits[2]
     for cell in range(n_cells):
-        by_status = _status_counts(status, cells, cell)
-        n = by_status.sum()  # each pixel of the cell has one status: whole numbers, exact
+        c0 = c1 = c2 = c3 = c4 = c5 = c6 = b0 = b1 = b2 = np.int32(0)
         sum_abs = total = sum_sq = sum_abs_z = sum_sq_z = 0.0
-        for x in range(status.shape[0]):  # residual terms: vectorises (selects, no branches)
-            counted = (cells[x] == cell) & (status[x] == COUNTED)
+        for x in range(status.shape[0]):
+            code = np.int32(status[x]) if cells[x] == cell else np.int32(-1)
+            c0 += code == COUNTED
+            c1 += code == MISSING
+            c2 += code == BORDER
+            c3 += code == HIDDEN
+            c4 += code == MISSING_TARGET
+            c5 += code == EDGE
+            c6 += code == MOVING
+            counted = code == COUNTED
             value = np.float64(r[x]) if counted else 0.0
             value_z = np.float64(rz[x]) if counted else 0.0
-            sum_abs += abs(value)
+            magnitude = abs(value)
+            sum_abs += magnitude
             total += value
             sum_sq += value * value
             sum_abs_z += abs(value_z)
             sum_sq_z += value_z * value_z
+            b0 += magnitude > t0
+            b1 += magnitude > t1
+            b2 += magnitude > t2
         totals = sums[cell]
-        totals[COL_N] += n
-        for k in range(STATUSES):
-            totals[COL_STATUS + k] += by_status[k]
+        totals[COL_N] += c0 + c1 + c2 + c3 + c4 + c5 + c6  # one status per pixel: exact
+        totals[COL_STATUS + COUNTED] += c0
+        totals[COL_STATUS + MISSING] += c1
+        totals[COL_STATUS + BORDER] += c2
+        totals[COL_STATUS + HIDDEN] += c3
+        totals[COL_STATUS + MISSING_TARGET] += c4
+        totals[COL_STATUS + EDGE] += c5
+        totals[COL_STATUS + MOVING] += c6
         totals[COL_SUM_ABS] += sum_abs
         totals[COL_SUM] += total
         totals[COL_SUM_SQ] += sum_sq
         totals[COL_SUM_ABS_Z] += sum_abs_z
         totals[COL_SUM_SQ_Z] += sum_sq_z
-        for i in range(thresholds.shape[0]):
-            limit = thresholds[i]
-            bad = 0.0
-            for x in range(status.shape[0]):  # NaN (not counted) is never above a threshold
-                bad += 1.0 if (cells[x] == cell) & (abs(np.float64(r[x])) > limit) else 0.0
-            totals[COL_BAD + i] += bad
+        bad = (b0, b1, b2)
+        for i in range(min(3, thresholds.shape[0])):
+            totals[COL_BAD + i] += bad[i]
+        for first in range(3, thresholds.shape[0], 3):  # more thresholds: a pass per three
+            more = _bad_counts(r, cells, cell, limits[first], limits[first + 1], limits[first + 2])
+            for i in range(min(3, thresholds.shape[0] - first)):
+                totals[COL_BAD + first + i] += more[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _status_counts(
-    status: np.ndarray, cells: np.ndarray, cell: int
-) -> np.ndarray:  # pragma: no cover - compiled
-    """How many pixels of ``cell`` have each status: seven counters, compared, no scatter.
-
-    A scatter into seven counters stalls on its own stores (a run of one status adds to one
-    counter); whole-number counts are exact in any order.
-    """
-    c0 = c1 = c2 = c3 = c4 = c5 = c6 = 0
-    for x in range(status.shape[0]):
-        code = np.int64(status[x]) if cells[x] == cell else np.int64(-1)
-        c0 += code == COUNTED
-        c1 += code == MISSING
-        c2 += code == BORDER
-        c3 += code == HIDDEN
-        c4 += code == MISSING_TARGET
-        c5 += code == EDGE
-        c6 += code == MOVING
-    out = np.empty(STATUSES, np.float64)
-    out[COUNTED], out[MISSING], out[BORDER], out[HIDDEN] = c0, c1, c2, c3
-    out[MISSING_TARGET], out[EDGE], out[MOVING] = c4, c5, c6
-    return out
+def _bad_counts(
+    r: np.ndarray, cells: np.ndarray, cell: int, t0: float, t1: float, t2: float
+) -> tuple[int, int, int]:  # pragma: no cover - compiled
+    """How many pixels of ``cell`` have ``|r|`` above each of three thresholds (NaN: never)."""
+    b0 = b1 = b2 = np.int32(0)
+    for x in range(r.shape[0]):
+        magnitude = abs(np.float64(r[x])) if cells[x] == cell else 0.0
+        b0 += magnitude > t0
+        b1 += magnitude > t1
+        b2 += magnitude > t2
+    return b0, b1, b2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -426,12 +444,9 @@ def _add(
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _bilinear(image: np.ndarray, x0: int, y0: int, wx: float, wy: float) -> float:
     """Bilinear value at ``(x0 + wx, y0 + wy)`` (NaN when a support pixel is NaN)."""
-    a = np.float64(image[y0, x0])
-    b = np.float64(image[y0, x0 + 1])
-    c = np.float64(image[y0 + 1, x0])
-    d = np.float64(image[y0 + 1, x0 + 1])
-    top = a + wx * (b - a)
-    return top + wy * (c + wx * (d - c) - top)
+    a, b = np.float64(image[y0, x0]), np.float64(image[y0, x0 + 1])
+    c, d = np.float64(image[y0 + 1, x0]), np.float64(image[y0 + 1, x0 + 1])
+    return _blend(a, b, c, d, wx, wy)
 
 
 @njit(cache=True, nogil=True)
@@ -459,54 +474,56 @@ def flicker_spread(
 ) -> None:  # pragma: no cover - compiled
     """Per-pixel sample spread (``ddof = 1``) of disparity and depth over a window of frames.
 
-    Row by row, each frame's row read twice from cache (mean, then squared deviations: no
-    cancellation), every loop a vectorised pass. Writes the window's ``mean`` disparity
-    (NaN where a frame has no estimate), the status (missing in a frame, else moving when the
-    intensity range over ``images`` exceeds ``photometric``, else counted: edges come later
-    from ``mean``) and the spreads (NaN unless counted). The loops are element-wise: they
-    vectorise without reassociation, so an unchanging pixel has a spread of exactly 0.
+    One pass over the frames, shifted sums: each frame's deviation from the first frame's
+    value (``δ``, and ``ε`` in depth) adds to ``Σδ`` and ``Σδ²``; the spread is
+    ``√((Σδ² − (Σδ)²/n)/(n − 1))``. Shifting by a sample bounds the cancellation: the
+    squared distance of the mean from any sample is at most ``(n − 1)·s²``, so the
+    float64 sums lose at most ``log₂ n`` bits (plain sums of squares of disparities ~100 px
+    with a spread of 0.01 px would lose 20). An unchanging pixel has every ``δ = 0``: a spread
+    of exactly 0. Writes the window's ``mean`` disparity (NaN where a frame has no estimate),
+    the status (missing in a frame, else moving when the intensity range over ``images``
+    exceeds ``photometric``, else counted: edges come later from ``mean``) and the spreads
+    (NaN unless counted). Every loop is element-wise over a row: it vectorises.
     """
     status_map, r_map, rz_map = maps
     frames = len(disparities)
     height, width = mean.shape
     with_images = len(images) == frames
+    first = np.empty(width, np.float64)
+    first_z = np.empty(width, np.float64)
     total = np.empty(width, np.float64)
     total_z = np.empty(width, np.float64)
     square = np.empty(width, np.float64)
     square_z = np.empty(width, np.float64)
-    valid = np.empty(width, np.float64)
-    values = np.empty((frames, width), np.float64)
-    depths = np.empty((frames, width), np.float64)
+    valid = np.empty(width, np.bool_)
     low = np.empty(width, np.int32)
     high = np.empty(width, np.int32)
+    per = 1.0 / frames  # reciprocals: multiplications in the per-pixel loop
+    per_dof = 1.0 / (frames - 1)
     for y in range(height):
+        row = disparities[0][y]
+        for x in range(width):
+            d = np.float64(row[x])
+            s = d + doffs
+            ok = s > 0.0
+            valid[x] = ok
+            first[x] = d if ok else 0.0
+            first_z[x] = fb / s if ok else 0.0
         total[:] = 0.0
         total_z[:] = 0.0
-        valid[:] = 0.0
-        for f in range(frames):  # each frame's row once: values, depths and their totals
+        square[:] = 0.0
+        square_z[:] = 0.0
+        for f in range(1, frames):  # each frame's row once
             row = disparities[f][y]
-            d_row = values[f]
-            z_row = depths[f]
             for x in range(width):
                 d = np.float64(row[x])
                 s = d + doffs
                 ok = s > 0.0
-                d_row[x] = d if ok else 0.0
-                z_row[x] = fb / s if ok else 0.0
-                valid[x] += 1.0 if ok else 0.0
-                total[x] += d_row[x]
-                total_z[x] += z_row[x]
-        for x in range(width):
-            total[x] /= frames
-            total_z[x] /= frames
-        square[:] = 0.0
-        square_z[:] = 0.0
-        for f in range(frames):  # squared deviations from the mean: no cancellation
-            d_row = values[f]
-            z_row = depths[f]
-            for x in range(width):
-                deviation = d_row[x] - total[x]
-                deviation_z = z_row[x] - total_z[x]
+                valid[x] &= ok
+                deviation = d - first[x] if ok else 0.0
+                deviation_z = fb / s - first_z[x] if ok else 0.0
+                total[x] += deviation
+                total_z[x] += deviation_z
                 square[x] += deviation * deviation
                 square_z[x] += deviation_z * deviation_z
         low[:] = 256
@@ -517,18 +534,20 @@ def flicker_spread(
                 for x in range(width):
                     low[x] = min(low[x], np.int32(grey[x]))
                     high[x] = max(high[x], np.int32(grey[x]))
-        for x in range(width):  # float64 only, apart from the selects below: vectorises
-            square[x] = np.sqrt(square[x] / (frames - 1))
-            square_z[x] = np.sqrt(square_z[x] / (frames - 1))
         mean_row, status_row, r_row, rz_row = mean[y], status_map[y], r_map[y], rz_map[y]
         for x in range(width):
-            complete = valid[x] == frames
+            complete = valid[x]
             moving = np.float64(high[x] - low[x]) > photometric
-            mean_row[x] = np.float32(total[x]) if complete else np.float32(np.nan)
+            # float32 square roots of the float64 variances: the maps are float32 anyway
+            spread = np.sqrt(np.float32(max(square[x] - total[x] * total[x] * per, 0.0) * per_dof))
+            spread_z = np.sqrt(
+                np.float32(max(square_z[x] - total_z[x] * total_z[x] * per, 0.0) * per_dof)
+            )
+            mean_row[x] = np.float32(first[x] + total[x] * per) if complete else np.float32(np.nan)
             status_row[x] = MISSING if not complete else (MOVING if moving else COUNTED)
             counted = complete and not moving
-            r_row[x] = square[x] if counted else np.nan
-            rz_row[x] = square_z[x] if counted else np.nan
+            r_row[x] = spread if counted else np.float32(np.nan)
+            rz_row[x] = spread_z if counted else np.float32(np.nan)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

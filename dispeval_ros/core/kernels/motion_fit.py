@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from dispeval_ros.core.kernels._jit import njit
-from dispeval_ros.core.kernels.motion import _bilinear, _columns
+from dispeval_ros.core.kernels.motion import _bilinear, _blend, _columns
 
 
 @njit(cache=True, nogil=True)
@@ -88,17 +88,17 @@ def offset_residuals(
         y0 = min(int(yp), height - 2)
         wx = xp - x0
         wy = yp - y0
-        r = _bilinear(tgt, x0, y0, wx, wy) - offset - (fb / qz - doffs)
+        p00 = np.float64(tgt[y0, x0])  # the support, loaded once for the value and slopes
+        p01 = np.float64(tgt[y0, x0 + 1])
+        p10 = np.float64(tgt[y0 + 1, x0])
+        p11 = np.float64(tgt[y0 + 1, x0 + 1])
+        r = _blend(p00, p01, p10, p11, wx, wy) - offset - (fb / qz - doffs)
         if not abs(r) < np.inf or tgt_edges[int(yp + 0.5), int(xp + 0.5)]:
             continue
         if photo and (
             abs(np.float64(src_image[y, x]) - _bilinear(tgt_image, x0, y0, wx, wy)) > photometric
         ):
             continue
-        p00 = np.float64(tgt[y0, x0])
-        p01 = np.float64(tgt[y0, x0 + 1])
-        p10 = np.float64(tgt[y0 + 1, x0])
-        p11 = np.float64(tgt[y0 + 1, x0 + 1])
         dz = z * z / fb
         gx = (1.0 - wy) * (p01 - p00) + wy * (p11 - p10)
         gy = (1.0 - wx) * (p10 - p00) + wx * (p11 - p01)
