@@ -13,10 +13,13 @@ __all__ = [
     "ConfigurationError",
     "DispevalError",
     "EmptyGroundTruthError",
+    "ExtrapolationError",
     "InputError",
     "LayoutError",
     "ResultsConflictError",
     "ShapeMismatchError",
+    "TransformChainError",
+    "TransformDataError",
 ]
 
 
@@ -46,6 +49,35 @@ class ConfigurationError(DispevalError):
 
 class EmptyGroundTruthError(DispevalError):
     """A ground-truth map has no valid point, so nothing can be evaluated."""
+
+
+class TransformDataError(InputError):
+    """``/tf`` data that cannot be kept: two parents, a loop, too old, or none at all."""
+
+
+class TransformChainError(CalibrationError):
+    """No chain of transforms connects two frames (or the chain does not move the camera)."""
+
+
+class ExtrapolationError(InputError):
+    """A lookup at a stamp outside one ``/tf`` edge's samples (tf2's ExtrapolationException).
+
+    ``edge`` is its ``(parent, child)``; ``future`` is True when the stamp is after the newest
+    sample (waiting for more ``/tf`` may answer it; a stamp before the oldest never will be).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        edge: tuple[str, str] = ("", ""),
+        stamp_ns: int = 0,
+        future: bool = False,
+    ) -> None:
+        super().__init__(message)
+        self.edge = edge
+        self.stamp_ns = stamp_ns
+        self.future = future
 
 
 class ResultsConflictError(ConfigurationError):

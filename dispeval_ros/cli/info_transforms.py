@@ -17,8 +17,7 @@ from dispeval_ros.core.transform_history import (
 )
 from dispeval_ros.errors import DispevalError
 from dispeval_ros.io.bags import BagSource
-from dispeval_ros.io.messages import static_transforms_from_msg
-from dispeval_ros.io.tf_messages import transforms_from_msg
+from dispeval_ros.io.tf_messages import add_tf_message
 from dispeval_ros.stream.config import TF_STATIC_TOPIC
 
 TF_READ_LIMIT = 20_000
@@ -87,48 +86,33 @@ def transform_facts(
     """Read the TFMessage ``topics`` (name: count) into a history (/tf up to the limit)."""
     history = TransformHistory(cache_ns=_FOREVER_NS)
     problems: list[str] = []
-    static: list[tuple[str, str]] = []
-    newest: dict[tuple[str, str], int] = {}
-    late: dict[tuple[str, str], int] = {}
     read = 0
     total = sum(count for name, count in topics.items() if name != TF_STATIC_TOPIC)
     messages = source.messages(list(topics), on_error=lambda error: problems.append(str(error)))
     try:
         for topic, _, msg in messages:
-            if topic != TF_STATIC_TOPIC:
+            static = topic == TF_STATIC_TOPIC
+            if not static:
                 if read == TF_READ_LIMIT:
                     break
                 read += 1
-            try:  # a message that cannot be used is one problem; the others are kept
-                if topic == TF_STATIC_TOPIC:
-                    edges = static_transforms_from_msg(msg, topic)
-                    static += [(e.parent.lstrip("/"), e.child.lstrip("/")) for e in edges]
-                    history.add_static(edges)
-                    continue
-                samples = transforms_from_msg(msg, topic)
-            except DispevalError as error:
-                problems.append(str(error))
-                continue
-            for stamp, edge in samples:  # in log order: an earlier stamp arrived late
-                key = (edge.parent.lstrip("/"), edge.child.lstrip("/"))
-                if stamp < newest.get(key, stamp):
-                    late[key] = late.get(key, 0) + 1
-                newest[key] = max(stamp, newest.get(key, stamp))
-            problems += history.extend(samples)
-    except DispevalError as error:
+            problems += add_tf_message(history, msg, topic, static=static)
+    except DispevalError as error:  # damage: what came before it
         problems.append(str(error))
     finally:
         close = getattr(messages, "close", None)
         if close is not None:
             close()
-    for (parent, child), count in late.items():
-        problems.append(
-            f"/tf {parent} → {child}: {count} sample(s) logged after a later stamp "
-            "(out of order; lookups sort them by stamp)"
-        )
+    spans = history.spans()
+    for span in spans:
+        if span.late:
+            problems.append(
+                f"/tf {span.parent} → {span.child}: {span.late} sample(s) logged after a later "
+                "stamp (out of order; lookups sort them by stamp)"
+            )
     return TransformFacts(
-        history.spans(),
-        sorted(set(static)),
+        spans,
+        sorted((e.parent, e.child) for e in history.static.edges.values()),
         read,
         total,
         camera,

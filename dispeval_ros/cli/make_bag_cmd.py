@@ -167,6 +167,10 @@ def run(args: argparse.Namespace) -> int:
                         f"dispeval bag --tolerance {math.ceil(offset)} (ms) or more"
                     )
                 )
+        elif "tf" in summary:
+            print(
+                wrapped(f"ego-motion: {summary['tf']} (odom → base_link), {summary['tf_static']}")
+            )
     return 0
 
 

@@ -32,7 +32,12 @@ from dispeval_ros.core.transforms import (
     invert_rigid,
     pose_from_matrix,
 )
-from dispeval_ros.errors import CalibrationError, InputError
+from dispeval_ros.errors import (
+    CalibrationError,
+    ExtrapolationError,
+    TransformChainError,
+    TransformDataError,
+)
 
 __all__ = [
     "DEFAULT_CACHE_NS",
@@ -54,28 +59,6 @@ DEFAULT_FIXED_FRAME = "odom"
 """REP 105's continuous world frame: the camera's motion goes through it when it is above it."""
 
 
-class TransformDataError(InputError):
-    """``/tf`` data that cannot be kept: two parents, a loop, too old, or none at all."""
-
-
-class TransformChainError(CalibrationError):
-    """No chain of transforms connects two frames (or the chain does not move)."""
-
-
-class ExtrapolationError(InputError):
-    """A lookup at a stamp outside one dynamic edge's samples (tf2's ExtrapolationException).
-
-    ``future`` is True when the stamp is after the newest sample: waiting for more ``/tf``
-    may answer it; a stamp before the oldest sample never will be.
-    """
-
-    def __init__(self, message: str, *, edge: tuple[str, str], stamp_ns: int, future: bool):
-        super().__init__(message)
-        self.edge = edge
-        self.stamp_ns = stamp_ns
-        self.future = future
-
-
 def format_stamp(stamp_ns: int) -> str:
     """A stamp in seconds with every nanosecond (``1700000000.100000000 s``): no float rounding."""
     sign = "-" if stamp_ns < 0 else ""
@@ -84,7 +67,9 @@ def format_stamp(stamp_ns: int) -> str:
 
 
 def _ms(delta_ns: int) -> str:
-    return f"{abs(delta_ns) / 1e6:.3f} ms"
+    """A stamp difference: in ms to the µs, or in ns below a millisecond (never "0.000 ms")."""
+    size = abs(delta_ns)
+    return f"{size / 1e6:.3f} ms" if size >= 1_000_000 else f"{size} ns"
 
 
 def _frame(name: str) -> str:
@@ -94,13 +79,19 @@ def _frame(name: str) -> str:
 
 @dataclass(frozen=True)
 class EdgeSpan:
-    """What one dynamic edge holds: its frames, how many samples and their first/last stamps."""
+    """What one dynamic edge holds: its frames, how many samples and their first/last stamps.
+
+    ``late``: samples that arrived after one with a later stamp (put in order; a publisher's or
+    recorder's reordering shows here); ``replaced``: samples that replaced one of the same stamp.
+    """
 
     parent: str
     child: str
     samples: int
     first_ns: int
     last_ns: int
+    late: int = 0
+    replaced: int = 0
 
 
 @dataclass
@@ -117,6 +108,8 @@ class _Edge:
     matrices: list[np.ndarray] = field(default_factory=list)
     poses: list[_Pose | None] = field(default_factory=list)
     pruned: bool = False
+    late: int = 0
+    replaced: int = 0
 
     @property
     def name(self) -> str:
@@ -134,7 +127,10 @@ class _Edge:
         index = bisect.bisect_left(stamps, stamp)
         if index < len(stamps) and stamps[index] == stamp:
             self.matrices[index], self.poses[index] = matrix, None
+            self.replaced += 1
             return
+        if index < len(stamps):
+            self.late += 1
         stamps.insert(index, stamp)
         self.matrices.insert(index, matrix)
         self.poses.insert(index, None)
@@ -233,10 +229,14 @@ class TransformHistory:
     """
 
     def __init__(self, static: TransformTree | None = None, cache_ns: int = DEFAULT_CACHE_NS):
-        if not (isinstance(cache_ns, int) and cache_ns > 0):
+        if (
+            isinstance(cache_ns, bool)
+            or not isinstance(cache_ns, (int, np.integer))
+            or cache_ns <= 0
+        ):
             raise TransformDataError(f"the /tf cache window must be > 0 ns, got {cache_ns!r}")
         self.static = static if static is not None else TransformTree()
-        self.cache_ns = cache_ns
+        self.cache_ns = int(cache_ns)
         self._edges: dict[str, _Edge] = {}
         self._lock = threading.RLock()
         self._paths: dict[tuple[str, str], _Path] = {}
@@ -357,7 +357,9 @@ class TransformHistory:
         """Each dynamic edge's sample count and first/last stamp (for ``info``), by child."""
         with self._lock:
             return [
-                EdgeSpan(e.parent, e.child, len(e.stamps), e.stamps[0], e.stamps[-1])
+                EdgeSpan(
+                    e.parent, e.child, len(e.stamps), e.stamps[0], e.stamps[-1], e.late, e.replaced
+                )
                 for _, e in sorted(self._edges.items())
                 if e.stamps
             ]
@@ -405,7 +407,7 @@ class TransformHistory:
     # -- lookups -------------------------------------------------------------------------------
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> np.ndarray:
-        """The 4×4 matrix mapping points in ``source`` into ``target`` at ``stamp_ns`` (tf2's order).
+        """The 4×4 matrix mapping points in ``source`` into ``target`` at ``stamp_ns`` (tf2 order).
 
         Raises :class:`TransformChainError` when no chain connects them and
         :class:`ExtrapolationError` when a dynamic edge of the chain has no samples around

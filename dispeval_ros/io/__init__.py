@@ -44,7 +44,6 @@ __getattr__, __dir__ = lazy_exports(
             "Scene",
             "list_frames",
             "load_scene",
-    "odometry_from_msg",
         ),
         "dispeval_ros.io.store": (
             "FrameScores",
@@ -57,6 +56,7 @@ __getattr__, __dir__ = lazy_exports(
             "write_objectives_csv",
         ),
         "dispeval_ros.io.tf_messages": (
+            "add_tf_message",
             "odometry_from_msg",
             "transforms_from_msg",
         ),
@@ -94,7 +94,7 @@ if TYPE_CHECKING:
     from dispeval_ros.io.scenes import Scene, list_frames, load_scene
     from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
     from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
-    from dispeval_ros.io.tf_messages import odometry_from_msg, transforms_from_msg
+    from dispeval_ros.io.tf_messages import add_tf_message, odometry_from_msg, transforms_from_msg
 
 __all__ = [
     "BagSource",
@@ -109,6 +109,7 @@ __all__ = [
     "ResultsStore",
     "Scene",
     "TopicInfo",
+    "add_tf_message",
     "camera_from_infos",
     "cloud_from_msg",
     "disparity_from_msg",

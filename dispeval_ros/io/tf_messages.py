@@ -8,11 +8,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from dispeval_ros.core.transform_history import TransformHistory
 from dispeval_ros.core.transforms import StaticTransform, matrix_from_pose
-from dispeval_ros.errors import CalibrationError, InputError
+from dispeval_ros.errors import CalibrationError, DispevalError, InputError
 from dispeval_ros.io.messages import stamp_ns, static_transforms_from_msg
 
-__all__ = ["odometry_from_msg", "transforms_from_msg"]
+__all__ = ["add_tf_message", "odometry_from_msg", "transforms_from_msg"]
 
 
 def _stamp(header: Any, where: str) -> int:
@@ -56,3 +57,20 @@ def odometry_from_msg(msg: Any, topic: str = "") -> tuple[int, StaticTransform]:
     except CalibrationError as error:
         raise CalibrationError(f"{where}: {error}") from None
     return _stamp(header, where), StaticTransform(parent, child, matrix)
+
+
+def add_tf_message(
+    history: TransformHistory, msg: Any, topic: str, *, static: bool = False
+) -> list[str]:
+    """Add a TFMessage to ``history`` (``static``: from /tf_static); its problems, one line each.
+
+    What can be kept is kept: a message that cannot be decoded is one problem, a transform the
+    history refuses (two parents, too old, ...) another, and the others of the message stay.
+    """
+    try:
+        if static:
+            history.add_static(static_transforms_from_msg(msg, topic))
+            return []
+        return history.extend(transforms_from_msg(msg, topic))
+    except DispevalError as error:
+        return [str(error)]

@@ -12,7 +12,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from dispeval_ros.core.transform_history import TransformHistory
 from dispeval_ros.errors import CalibrationError, InputError
-from dispeval_ros.io.tf_messages import odometry_from_msg, transforms_from_msg
+from dispeval_ros.io.tf_messages import add_tf_message, odometry_from_msg, transforms_from_msg
 
 HALF = math.sqrt(0.5)
 
@@ -145,3 +145,20 @@ def test_bad_messages_are_one_line() -> None:
     )
     with pytest.raises(InputError, match=r"^TFMessage on /tf: expected a std_msgs/Header"):
         transforms_from_msg(no_stamp, "/tf")
+
+
+def test_add_tf_message_keeps_what_it_can() -> None:
+    typestore = _typestore(Stores.ROS2_HUMBLE)
+    history = TransformHistory()
+    mount = _tf(typestore, [(0, "base_link", "camera", 0.5, 0.0)])
+    assert add_tf_message(history, mount, "/tf_static", static=True) == []
+    mixed = _tf(
+        typestore,
+        [(10, "odom", "base_link", 1.0, 0.0), (10, "map", "camera", 0.0, 0.0)],  # 2nd: 2 parents
+    )
+    (problem,) = add_tf_message(history, mixed, "/tf")
+    assert "/tf map → camera" in problem
+    assert "already has the parent 'base_link' on /tf_static" in problem
+    assert history.lookup("odom", "camera", 10)[0, 3] == pytest.approx(1.5)
+    (broken,) = add_tf_message(history, NS(), "/tf")
+    assert broken.startswith("TFMessage on /tf: message of type SimpleNamespace has no field")

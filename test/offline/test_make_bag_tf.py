@@ -87,3 +87,54 @@ def test_without_odometry_there_is_no_tf(tmp_path: Path) -> None:
     assert "tf_static" not in summary
     with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
         assert not {"/tf", "/tf_static"} & {c.topic for c in reader.connections}
+
+
+def test_a_synthetic_bag_scores_ego_motion_from_its_tf(tmp_path: Path) -> None:
+    """The true disparity moved by the bag's /tf lands on itself: 85 % of counted pixels < 0.01 px.
+
+    The rest are the traffic's vehicles (they move), so a quantile, not the mean, is checked.
+    The inverse motion (the wrong convention) fails it: the road maps onto itself under any
+    motion along it, but the buildings and parked cars do not.
+    """
+    from dispeval_ros.core.egomotion import PinholeCamera, egomotion_residual, prepare_frame
+    from dispeval_ros.core.transforms import invert_rigid
+    from dispeval_ros.io.messages import camera_from_infos, image_from_msg
+
+    bag = tmp_path / "drive"
+    write_bag(bag, synthetic_frames(3, 620, 188, FPS, seed=0), methods=[_BM])
+    history, stamps, camera = _history(bag)
+    left_info, right_info = (
+        _messages(bag, f"/stereo/{side}/camera_info")[0] for side in ("left", "right")
+    )
+    pinhole = PinholeCamera(
+        camera_from_infos(left_info, right_info), float(left_info.k[2]), float(left_info.k[5])
+    )
+    frames = [
+        prepare_frame(image_from_msg(gt).array, image_from_msg(left).array)
+        for gt, left in zip(
+            _messages(bag, "/stereo/ground_truth/disparity"),
+            _messages(bag, "/stereo/left/image_rect"),
+            strict=True,
+        )
+    ]
+    for later in (1, 2):
+        motion = history.camera_motion(camera, stamps[0], stamps[later])
+        quantiles = []
+        for moved in (motion, invert_rigid(motion)):
+            result = egomotion_residual(frames[0], frames[later], moved, pinhole, keep_maps=True)
+            status, residual, _ = result.maps
+            quantiles.append(float(np.percentile(np.abs(residual[status == 0]), 85)))
+        assert quantiles[0] < 0.01
+        assert quantiles[1] > 0.5
+
+
+def test_make_bag_says_where_the_motion_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dispeval_ros.cli.main import main
+
+    size = ["--frames", "2", "--width", "64", "--height", "32"]
+    assert main(["make-bag", str(tmp_path / "plain"), *size, "--no-lidar"]) == 0
+    assert "\nego-motion: /tf (odom → base_link), /tf_static\n" in capsys.readouterr().out
+    assert main(["make-bag", str(tmp_path / "lidar"), *size]) == 0
+    assert "with /tf_static; ego-motion on /tf (odom → base_link)\n" in capsys.readouterr().out
