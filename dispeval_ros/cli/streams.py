@@ -22,8 +22,13 @@ if TYPE_CHECKING:
 _NS_PER_MS = 1_000_000
 
 
-def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
-    """Topics, sync, evaluation and model options; returns the "run" group for the rest."""
+def add_stream_options(
+    parser: argparse.ArgumentParser, egomotion: bool = False
+) -> argparse._ArgumentGroup:
+    """Topics, sync, evaluation and model options; returns the "run" group for the rest.
+
+    ``egomotion``: also ``--egomotion`` (the commands that read /tf over time).
+    """
     topics = parser.add_argument_group("topics")
     gt = topics.add_mutually_exclusive_group()
     gt.add_argument("--gt", metavar="TOPIC", help="ground-truth sensor_msgs/Image topic")
@@ -101,7 +106,7 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
         help=f"{LATENESS_RULE} (ms, default {lateness_ms:g})",
     )
     common.add_evaluation_options(parser)
-    add_temporal_options(parser.add_argument_group("temporal"))
+    add_temporal_options(parser.add_argument_group("temporal"), egomotion)
     run = parser.add_argument_group("run")
     common.add_objective_options(run)
     run.add_argument(
@@ -113,8 +118,8 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     return run
 
 
-def add_temporal_options(group: argparse._ArgumentGroup) -> None:
-    """``--temporal [PRESET]`` (the option of ``eval``) and ``--pair-gap MS``."""
+def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False) -> None:
+    """``--temporal [PRESET]`` (the option of ``eval``), ``--pair-gap MS``, ``--egomotion``."""
     from dispeval_ros.cli import temporal_eval
 
     temporal_eval.add_options(group, "over each sequence's consecutive ground-truth frames")
@@ -124,8 +129,16 @@ def add_temporal_options(group: argparse._ArgumentGroup) -> None:
         type=float,
         default=gap_ms,
         metavar="MS",
-        help=f"with --temporal: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
+        help=f"with --temporal or --egomotion: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
     )
+    if egomotion:
+        group.add_argument(
+            "--egomotion",
+            action="store_true",
+            help="also score each method's ego-motion residual over the same pairs (temporal "
+            "noise without GT, on gtfree: criteria: frame t's estimate moved into frame t+1 by "
+            "the camera's motion from the bag's /tf; needs --camera-info; docs/method.md)",
+        )
 
 
 _NAMES = {
@@ -138,6 +151,7 @@ _NAMES = {
     "right_image_topic": "--right-image",
     "temporal": "--temporal",
     "pair_gap_ns": "--pair-gap",
+    "egomotion": "--egomotion",
 }
 """How the options name :class:`CoreConfig`'s fields in its errors (``gt_topic``: see below)."""
 
@@ -216,6 +230,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
         temporal=args.temporal,
+        egomotion=bool(getattr(args, "egomotion", False)),  # (bag only, for now)
         pair_gap_ns=round(non_negative_ms(args.pair_gap, "--pair-gap") * _NS_PER_MS),
         names=names,
     )

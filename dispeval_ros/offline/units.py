@@ -46,6 +46,7 @@ from dispeval_ros.offline.threads import (  # noqa: F401 (executors and tests im
     scoring_pool,
     scoring_threads,
 )
+from dispeval_ros.stream.config import TF_STATIC_TOPIC, TF_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.join import FrameSet, JoinEvent
 from dispeval_ros.stream.pairs import MotionPair
@@ -251,6 +252,13 @@ def occupied_ns(source: BagSource, grain_ns: int) -> int:
 def check_topics(source: BagSource, config: CoreConfig) -> None:
     """Every configured topic exists with the expected type (else one error listing the bag's topics)."""
     for topic, msgtype in config.topics.items():
+        if config.egomotion and topic == TF_STATIC_TOPIC and topic not in source.topics:
+            continue  # the camera frame may be on /tf itself
+        if config.egomotion and topic == TF_TOPIC and topic not in source.topics:
+            raise InputError(
+                f"{source.path} has no {topic} to take the camera's motion from (--egomotion): "
+                "record the odometry's transforms (odom → base_link) with the streams"
+            )
         if topic == config.tf_topic and topic not in source.topics:
             raise InputError(
                 f"{source.path} has no {topic} to take the LiDAR → camera transform from; "
@@ -265,8 +273,8 @@ def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
     Static transforms are latched: recorded once, near the start, so a slice of the bag read
     on its own would miss them.
     """
-    topic = core.config.tf_topic
-    if topic:
+    topic = core.config.tf_topic or (TF_STATIC_TOPIC if core.config.egomotion else None)
+    if topic and topic in source.topics:
         for _, _, msg in source.messages([topic]):
             core.push(topic, msg)
 
@@ -368,6 +376,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         executor=pool if frame_pool is None else None,
         repeat_memory_ns=None,  # a unit is short: every GT stamp it saw is remembered
         seen_stamps=unit.seen_stamps,
+        wait_for_motion=True,
     )
     inside = range(unit.start_ns, unit.stop_ns)  # of log time: the arrival clock
     matched: Counter[str] = Counter()
@@ -435,7 +444,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         """
         if read_from is not None:
             yield from source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
-        yield from source.messages(list(config.topics), read_from, read_to)
+        topics = [t for t in config.topics if t in source.topics]  # (/tf_static: optional)
+        yield from source.messages(topics, read_from, read_to)
 
     try:
         source = open_bag(unit.path)
@@ -469,6 +479,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         if kind == "repeated"
     )
     result.problems.extend(unmatched_hints(config, unit.sequence, kept, core.joiner.events or []))
+    if core.motion is not None:  # /tf samples refused (said per unit, with their count)
+        result.problems.extend(
+            Problem(unit.sequence, None, None, text) for text in core.motion.problems()
+        )
     for method in config.methods:
         result.counts[method] = MatchCounts(
             matched=matched[method],

@@ -34,6 +34,8 @@ CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
+TF_TOPIC = "/tf"
+"""The transforms over time (ego-motion: ``odom → base_link`` …), read with ``egomotion``."""
 QUEUE_SIZE = 4
 """Joined frames waiting to be scored by a live front end before the oldest is dropped."""
 GT_KINDS = ("disparity", "depth", "pointcloud", "none")
@@ -380,6 +382,9 @@ class CoreConfig:
             expected[self.right_info_topic] = CAMERA_INFO_TYPE
         if self.tf_topic:
             expected[self.tf_topic] = TF_TYPE
+        if self.egomotion:  # the camera's motion: its mount (static) and the motion over time
+            expected[TF_STATIC_TOPIC] = TF_TYPE
+            expected[TF_TOPIC] = TF_TYPE
         expected[self.gt_topic] = POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE
         expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
         if self.left_image_topic and self.right_image_topic:

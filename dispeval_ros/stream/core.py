@@ -46,6 +46,7 @@ from dispeval_ros.stream.config import (
     CoreConfig,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
+from dispeval_ros.stream.motion import MotionSource
 from dispeval_ros.stream.pairs import PairInput, PairOutcome, camera_view
 from dispeval_ros.stream.results import FrameResult, MethodCounts
 
@@ -80,8 +81,12 @@ class EvaluationCore:
         executor: Executor | None = None,
         repeat_memory_ns: int | None = REPEAT_MEMORY_NS,
         seen_stamps: Collection[int] = (),
+        wait_for_motion: bool = False,
     ) -> None:
-        """``repeat_memory_ns`` and ``seen_stamps``: see :class:`StampJoiner`."""
+        """``repeat_memory_ns``, ``seen_stamps``: see :class:`StampJoiner`.
+
+        ``wait_for_motion``: ego-motion pairs wait for /tf (see :attr:`PairStage.ready`).
+        """
         self.config = config
         self.error_images = error_images
         self.executor = executor
@@ -91,6 +96,8 @@ class EvaluationCore:
         self.gt_free = config.ground_truth_free()
         self.pairs = config.pair_stage()
         """The pair stage (``temporal``): fed in the join's order by :meth:`pair`."""
+        self.motion: MotionSource | None = None
+        """With ``egomotion``: the stream's /tf history the residual's motion comes from."""
         auxiliary = config.auxiliary()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
             [*config.methods, *auxiliary],
@@ -111,6 +118,11 @@ class EvaluationCore:
         self._cloud_filter = CloudFilter.parse(config.cloud_filter)
         self.failed = dict.fromkeys(config.methods, 0)
         self._failed_lock = threading.Lock()
+        if config.egomotion and self.pairs is not None:
+            self.motion = MotionSource(self.transforms, TF_STATIC_TOPIC)
+            self.pairs.motion = self.motion.history.camera_motion
+            if wait_for_motion:  # a bag: /tf logged after a frame is read before its pair
+                self.pairs.ready = self.motion.history.ready
         self._negative_t: set[str] = set()
         """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
@@ -130,6 +142,9 @@ class EvaluationCore:
         if topic in (self.config.left_info_topic, self.config.right_info_topic):
             self._infos[topic] = msg
             self._camera = None  # recomputed on the next frame from the latest infos
+            return []
+        if self.motion is not None and self.motion.takes(topic):  # /tf (and /tf_static)
+            self.motion.push(topic, msg)
             return []
         if topic == self.config.tf_topic:
             # A malformed message is skipped: the frames it would connect are then reported
