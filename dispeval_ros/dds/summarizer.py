@@ -45,8 +45,7 @@ from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, gro
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     arrivals_of,
-    motion_from_status,
-    pair_from_status,
+    read_pairs,
     read_problem,
     scores_from_status,
 )
@@ -126,12 +125,7 @@ class DdsSummarizer:
                     problems.append(problem)
                 else:
                     scores[record.name] = scores_from_status(record.values)
-                    pair = pair_from_status(record.values)
-                    if pair is not None:
-                        pairs[record.name] = pair
-                    moved = motion_from_status(record.values)
-                    if moved is not None:
-                        motion[record.name] = moved
+                    read_pairs(record, pairs, motion)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one

@@ -45,8 +45,7 @@ from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
     arrivals_of,
-    motion_from_status,
-    pair_from_status,
+    read_pairs,
     read_problem,
     scores_from_status,
 )
@@ -135,12 +134,7 @@ class SummarizerNode(Node):
                         problems.append((stamp, *problem))
                     else:
                         frame[record.name] = scores_from_status(record.values)
-                        pair = pair_from_status(record.values)
-                        if pair is not None:
-                            pairs[record.name] = pair
-                        moved = motion_from_status(record.values)
-                        if moved is not None:
-                            motion[record.name] = moved
+                        read_pairs(record, pairs, motion)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(

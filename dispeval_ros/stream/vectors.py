@@ -266,6 +266,23 @@ def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, Temporal
     return previous, TemporalSums("egomotion", tuple(criteria), thresholds, sums, (offset,))
 
 
+def read_pairs(
+    record: StatusRecord,
+    pairs: dict[str, tuple[int, PairScores]],
+    motion: dict[str, tuple[int, TemporalSums]],
+) -> None:
+    """Add a method status's pair and ego-motion residual, where it has them, by its name.
+
+    What every summarizer reads of a status beside its scores (:func:`scores_from_status`).
+    """
+    pair = pair_from_status(record.values)
+    if pair is not None:
+        pairs[record.name] = pair
+    moved = motion_from_status(record.values)
+    if moved is not None:
+        motion[record.name] = moved
+
+
 def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores] | None:
     """``(earlier frame's stamp, pair scores)`` of a status with a pair, else None."""
     from dispeval_ros.core.kernels.temporal import PAIR_COUNT
