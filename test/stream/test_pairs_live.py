@@ -24,17 +24,21 @@ from dispeval_ros.stream.vectors import (
 )
 
 
+@pytest.mark.parametrize("workers", [1, 3])
 def test_statuses_carry_the_pairs_and_the_summarizer_pools_those_of_dispeval_bag(
-    tmp_path: Path,
+    tmp_path: Path, workers: int
 ) -> None:
+    """With frames scored side by side too: they reach the pair stage in the join's order."""
     bag = sample_bag()
     config = dataclasses.replace(sample_config(bag), temporal="dispeval")
     results: list[FrameResult] = []
-    live = LiveEvaluator(config, results.append, queue_size=100_000)  # none dropped
+    live = LiveEvaluator(config, results.append, queue_size=100_000, workers=workers)
     with BagSource(bag) as source:
         for topic, log_ns, msg in source.messages(list(config.topics)):
             live.push(topic, msg, received=log_ns)
     live.stop(flush=True)
+    assert [r.stamp for r in results] == sorted(r.stamp for r in results)
+    assert not [text for r in results for _, text in r.problems if "no pair" in text]
     core = SummarizerCore(SummarizerConfig(tmp_path / "live", every_n=3), {"run": "live"})
     carried = 0
     for result in results:
