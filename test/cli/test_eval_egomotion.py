@@ -379,7 +379,7 @@ def test_an_unusable_pose_is_a_problem_of_its_pairs_only(
                          "--egomotion", "--json")  # fmt: skip
     assert code == 0, err
     ego = json.loads(out)["egomotion"]
-    assert ego["problems"][0].startswith(OUTSIDE.split("; 11 sample(s)")[0])
+    assert ego["problems"][0].startswith(OUTSIDE.split("; 11 sample(s)", maxsplit=1)[0])
     assert [p.split(":")[0] for p in ego["problems"][1:]] == [
         "no pair 0000000004 → 0000000005 (sgbm, bm_fast)",
         "no pair 0000000005 → 0000000006 (sgbm, bm_fast)",
