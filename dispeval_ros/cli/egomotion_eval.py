@@ -4,14 +4,14 @@ No ground truth takes part: the estimate of frame ``t`` is moved into frame ``t 
 left camera's motion between them and compared with the estimate there
 (:func:`~dispeval_ros.core.egomotion.egomotion_residual`; docs/method.md, "Temporal noise
 without ground truth"). The motion is the KITTI raw drive's oxts poses carried to the camera
-and looked up at the left images' stamps through the ``/tf`` history ``make-bag`` writes
-(:func:`~dispeval_ros.io.kitti_raw.drive_motion`: one definition of the camera's motion between
-two stamps for ``eval`` and ``bag``); scenes without poses are refused. Pairs and gaps are
+and looked up at the left images' stamps through the TransformHistory that a ``make-bag`` of the
+drive carries on ``/tf`` (:func:`~dispeval_ros.io.kitti_raw.drive_motion`: one definition of
+the camera's motion between two stamps); scenes without poses are refused. Pairs and gaps are
 planned as for ``--temporal`` (:func:`~dispeval_ros.cli.temporal_eval.frame_runs`); a pair
 whose pose is unusable or whose image stamp is outside the oxts samples is a problem line, the
-others are scored. Criteria are the
-ground-truth-free ones of frame ``t``'s images, labelled ``gtfree:`` so they never pass for
-accuracy; a constant offset is fitted and removed per pair, so this is noise, not bias.
+others are scored. Criteria are the ground-truth-free ones of frame ``t``'s images, labelled
+``gtfree:`` so they never pass for accuracy; a constant offset is fitted and removed per pair,
+so this is noise, not bias.
 
 Beside it, on the same pairs, each method's LiDAR drift between scans
 (:func:`~dispeval_ros.core.lidar_drift.lidar_drift`: the change of its error against the
