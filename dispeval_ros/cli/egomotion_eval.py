@@ -4,11 +4,14 @@ No ground truth takes part: the estimate of frame ``t`` is moved into frame ``t 
 left camera's motion between them and compared with the estimate there
 (:func:`~dispeval_ros.core.egomotion.egomotion_residual`; docs/method.md, "Temporal noise
 without ground truth"). The motion is the KITTI raw drive's oxts poses carried to the camera
-(:func:`~dispeval_ros.io.kitti_raw.camera_poses`); scenes without poses are refused. Pairs and
-gaps are planned as for ``--temporal`` (:func:`~dispeval_ros.cli.temporal_eval.frame_runs`);
-a pair whose pose is unusable is a problem line, the others are scored. Criteria are the
-ground-truth-free ones of frame ``t``'s images, labelled ``gtfree:`` so they never pass for
-accuracy; a constant offset is fitted and removed per pair, so this is noise, not bias.
+and looked up at the left images' stamps through the TransformHistory that a ``make-bag`` of the
+drive carries on ``/tf`` (:func:`~dispeval_ros.io.kitti_raw.drive_motion`: one definition of
+the camera's motion between two stamps); scenes without poses are refused. Pairs and gaps are
+planned as for ``--temporal`` (:func:`~dispeval_ros.cli.temporal_eval.frame_runs`); a pair
+whose pose is unusable or whose image stamp is outside the oxts samples is a problem line, the
+others are scored. Criteria are the ground-truth-free ones of frame ``t``'s images, labelled
+``gtfree:`` so they never pass for accuracy; a constant offset is fitted and removed per pair,
+so this is noise, not bias.
 
 Beside it, on the same pairs, each method's LiDAR drift between scans
 (:func:`~dispeval_ros.core.lidar_drift.lidar_drift`: the change of its error against the
@@ -24,6 +27,7 @@ import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,7 +44,6 @@ from dispeval_ros.core.egomotion import (
     MotionFrame,
     PinholeCamera,
     TemporalSums,
-    camera_motion,
     egomotion_residual,
     prepare_frame,
 )
@@ -58,10 +61,16 @@ from dispeval_ros.core.lidar_drift import (
     lidar_drift,
 )
 from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS, GT_FREE_PREFIX
-from dispeval_ros.errors import ConfigurationError, DispevalError
+from dispeval_ros.errors import ConfigurationError, DispevalError, ExtrapolationError
+
+if TYPE_CHECKING:
+    from dispeval_ros.io.kitti_raw import DriveMotion
 
 OPTION = "--egomotion"
-POSES = "KITTI raw oxts (convertOxtsToPose) carried to the left camera by calib_imu_to_velo"
+POSES = (
+    "KITTI raw oxts (convertOxtsToPose) carried to the left camera by calib_imu_to_velo, "
+    "interpolated at the left images' stamps (tf2's lookup, never extrapolated)"
+)
 UNITS = {"mean_abs": "px", "mean": "px", "rms": "px", "mean_abs_z": "m", "rms_z": "m"}
 """The units of the values (``bad_X``: % of the counted pixels)."""
 DRIFT_UNITS = {
@@ -122,13 +131,19 @@ def configuration(args: argparse.Namespace) -> dict[str, object]:
 
 @dataclass(frozen=True)
 class EgoPlan:
-    """The pairs to score and, per frame of the plan, its pose (or why none) and images."""
+    """The pairs to score, the drive's motion and, per frame of the plan, its index and images."""
 
     step: int
     runs: Runs
-    poses: list[np.ndarray | str]
+    motion: DriveMotion
+    indices: list[int]
+    """Each planned frame's index in the drive (in ``motion``)."""
     images: list[tuple[Path, Path]]
     principal: tuple[float, float]
+
+    def between(self, first: int, second: int) -> np.ndarray:
+        """The camera's motion from planned frame ``first`` to ``second`` (their image stamps)."""
+        return self.motion.between(self.indices[first], self.indices[second])
 
 
 def plan(
@@ -138,7 +153,8 @@ def plan(
 
     ``frames``: each scored frame's name and estimates, in the scene's order.
     """
-    from dispeval_ros.io.kitti_raw import camera_poses, is_raw_source, open_drive
+    from dispeval_ros.io.kitti_raw import drive_motion, is_raw_source, open_drive
+    from dispeval_ros.offline.make_bag import BASE_FRAME, CAMERA_FRAME, ODOM_FRAME
 
     if not args.egomotion:
         return None
@@ -154,14 +170,15 @@ def plan(
     missing = [name for name in runs.frames if name not in where]
     if missing:
         raise ConfigurationError(f"--egomotion: frame {missing[0]} is not a frame of {args.scene}")
-    poses = camera_poses(drive)
+    motion = drive_motion(drive, fixed=ODOM_FRAME, base=BASE_FRAME, camera=CAMERA_FRAME)
     left, right = drive.streams["image_02"].files, drive.streams["image_03"].files
     indices = [where[name] for name in runs.frames]
     _, cx, cy = drive.calibration.ros_view()
     return EgoPlan(
         step,
         runs,
-        [poses[i] for i in indices],
+        motion,
+        indices,
         [(left[i], right[i]) for i in indices],
         (cx, cy),
     )
@@ -379,16 +396,13 @@ def score(
             m for m, method_runs in runs.items() if any(_pairs(r, a, b) for r in method_runs)
         ]
         where = f"frames {names[a]} → {names[b]}"
-        unusable = [p for p in (motion.poses[a], motion.poses[b]) if isinstance(p, str)]
-        if unusable:
-            problems.append(
-                f"no pair {names[a]} → {names[b]} ({', '.join(methods)}): {unusable[0]}"
-            )
-            continue
         try:
-            moved = camera_motion(motion.poses[a], motion.poses[b])
+            moved = motion.between(a, b)
         except DispevalError as error:
-            problems.append(f"no pair {names[a]} → {names[b]} ({', '.join(methods)}): {error}")
+            problems.append(
+                f"no pair {names[a]} → {names[b]} ({', '.join(methods)}): "
+                f"{_which(error, motion, a, b)}{error}"
+            )
             continue
         try:
             partition = image(a)[1]
@@ -422,6 +436,17 @@ def score(
         drift_options,
         drift,
     )
+
+
+def _which(error: DispevalError, motion: EgoPlan, a: int, b: int) -> str:
+    """Whose stamp an :class:`ExtrapolationError` is about (``frame N's left image: ``)."""
+    if not isinstance(error, ExtrapolationError):
+        return ""
+    names, stamps = motion.runs.frames, motion.motion.stamps
+    for index in (a, b):
+        if stamps[motion.indices[index]] == error.stamp_ns:
+            return f"frame {names[index]}'s left image (the oxts poses as /tf): "
+    return ""  # pragma: no cover - the error is about one of the two stamps
 
 
 def _pairs(run: list[int], a: int, b: int) -> bool:

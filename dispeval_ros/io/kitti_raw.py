@@ -10,11 +10,14 @@ same frames in each, one stamp per frame, the calibration complete), so a bad fo
 line and nothing written. The velodyne stamp is ``velodyne_points/timestamps.txt``: the moment
 the rotating scanner faced forward (the camera trigger), halfway between
 ``timestamps_start.txt`` and ``timestamps_end.txt``. :func:`oxts_poses` is the devkit's
-``convertOxtsToPose``: the GPS/IMU unit's pose relative to its first sample.
+``convertOxtsToPose``: the GPS/IMU unit's pose relative to its first sample;
+:func:`drive_motion` carries those poses to the left camera as ``/tf`` does and looks them up
+at the images' stamps (2–13 ms off the oxts samples' on the shared drive).
 """
 
 from __future__ import annotations
 
+import bisect
 import calendar
 import math
 import re
@@ -23,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dispeval_ros.core.transforms import invert_rigid
+from dispeval_ros.core.transform_history import TransformHistory, format_stamp
+from dispeval_ros.core.transforms import StaticTransform, invert_rigid
 from dispeval_ros.errors import CalibrationError, InputError, LayoutError
 from dispeval_ros.io.calib import _kitti_fields
 from dispeval_ros.io.lidar import (
@@ -279,32 +283,121 @@ def oxts_poses(samples: np.ndarray) -> np.ndarray:
     return invert_rigid(poses[0]) @ poses
 
 
-def camera_poses(drive: RawDrive) -> list[np.ndarray | str]:
-    """Each frame's pose of the left rectified camera in the odometry frame, or why it has none.
+def _oxts_samples(drive: RawDrive) -> tuple[list[str | None], dict[int, np.ndarray]]:
+    """Each oxts sample's one-line reason it is unusable (None if usable), the usable poses.
 
-    The camera (the one ``K·[I | 0]`` projects for: :meth:`LidarCalibration.ros_view`) sees
-    IMU points through ``T_cam_imu = extrinsic · imu_to_velo``; its pose is the oxts unit's
-    (:func:`oxts_poses`) times ``T_cam_imu⁻¹``, so ``poses[t]⁻¹ · poses[t + k]`` is the pose of
-    the camera at ``t + k`` in its frame at ``t``. A frame whose oxts file is unreadable gets
-    the one-line reason instead (the other frames keep their poses: only relative poses count),
-    as does one whose latitude is not within ±90° (the Mercator ``ln tan`` is undefined there).
+    The poses (:func:`oxts_poses`, the oxts unit's, relative to the first usable sample) are
+    keyed by the sample's index. Unusable: an unreadable file, a latitude not within ±90° (the
+    Mercator ``ln tan`` is undefined there), a stamp not after the previous usable sample's.
     """
     samples: dict[int, np.ndarray] = {}
-    out: list[np.ndarray | str] = []
-    for index, file in enumerate(drive.streams["oxts"].files):
+    reasons: list[str | None] = []
+    stream = drive.streams["oxts"]
+    last: int | None = None
+    for index, (file, stamp) in enumerate(zip(stream.files, stream.stamps, strict=True)):
         try:
-            samples[index] = read_oxts(file)
-            if not abs(samples[index][0]) < 90:  # Mercator: the log of a negative tangent
-                del samples[index]
+            values = read_oxts(file)
+            if not abs(values[0]) < 90:  # Mercator: the log of a negative tangent
                 raise InputError(f"{file}: the latitude must be within ±90°, not a pose")
+            if last is not None and stamp <= stream.stamps[last]:
+                raise InputError(
+                    f"{drive.folder / 'oxts' / TIMESTAMPS}: the stamp of {file.stem} "
+                    f"({format_stamp(stamp)}) is not after that of {stream.files[last].stem} "
+                    f"({format_stamp(stream.stamps[last])}), not a pose"
+                )
         except InputError as error:
-            out.append(str(error))
+            reasons.append(str(error))
             continue
-        out.append("")
-    if samples:
-        extrinsic = drive.calibration.ros_view()[0]
-        camera_to_imu = invert_rigid(extrinsic @ drive.imu_to_velo)
-        poses = oxts_poses(np.stack(list(samples.values())))
-        for index, pose in zip(samples, poses, strict=True):
-            out[index] = pose @ camera_to_imu
-    return out
+        samples[index], last = values, index
+        reasons.append(None)
+    if not samples:
+        return reasons, {}
+    poses = oxts_poses(np.stack(list(samples.values())))
+    return reasons, dict(zip(samples, poses, strict=True))
+
+
+def _camera_to_imu(drive: RawDrive) -> np.ndarray:
+    """The left rectified camera's pose on the oxts unit: ``T_cam_imu⁻¹`` (base_link → camera).
+
+    The camera (the one ``K·[I | 0]`` projects for: :meth:`LidarCalibration.ros_view`) sees
+    IMU points through ``T_cam_imu = extrinsic · imu_to_velo``.
+    """
+    return invert_rigid(drive.calibration.ros_view()[0] @ drive.imu_to_velo)
+
+
+def camera_poses(drive: RawDrive) -> list[np.ndarray | str]:
+    """Each oxts sample's pose of the left rectified camera in the odometry frame, or why none.
+
+    The oxts unit's pose (:func:`oxts_poses`) times ``T_cam_imu⁻¹`` (:func:`_camera_to_imu`),
+    at the oxts sample's own stamp, so ``poses[t]⁻¹ · poses[t + k]`` is the pose of the camera
+    at sample ``t + k`` in its frame at sample ``t``. An unusable sample gets the one-line
+    reason instead (the other samples keep their poses: only relative poses count).
+    ``eval --egomotion`` looks the poses up at the images' stamps: :func:`drive_motion`.
+    """
+    reasons, poses = _oxts_samples(drive)
+    camera_to_imu = _camera_to_imu(drive)
+    return [
+        poses[index] @ camera_to_imu if reason is None else reason
+        for index, reason in enumerate(reasons)
+    ]
+
+
+@dataclass(frozen=True)
+class DriveMotion:
+    """The camera's motion of a drive as ``/tf`` carries it, looked up at the left images' stamps.
+
+    ``history``: the oxts poses as ``fixed → base`` at each usable sample's stamp and the mount
+    ``base → camera`` (what ``make-bag`` writes on ``/tf`` and ``/tf_static``), so the motion
+    between two frames is :meth:`TransformHistory.camera_motion` of their image stamps: each
+    pose interpolated between the two oxts samples around the stamp, never extrapolated.
+    """
+
+    history: TransformHistory
+    camera_frame: str
+    stamps: list[int]
+    """Each frame's left image stamp (ns)."""
+    problems: list[str | None]
+    """Per frame, why its pose cannot be looked up (an unusable oxts sample it lies beside)."""
+
+    def between(self, first: int, second: int) -> np.ndarray:
+        """The camera's pose at frame ``second`` in its frame at frame ``first`` (4×4).
+
+        The convention of :func:`dispeval_ros.core.egomotion.camera_motion`. Raises the
+        frame's problem as :class:`InputError`, or :class:`ExtrapolationError` for an image
+        stamp outside the oxts samples.
+        """
+        for index in (first, second):
+            problem = self.problems[index]
+            if problem is not None:
+                raise InputError(problem)
+        return self.history.camera_motion(
+            self.camera_frame, self.stamps[first], self.stamps[second]
+        )
+
+
+def drive_motion(drive: RawDrive, *, fixed: str, base: str, camera: str) -> DriveMotion:
+    """The drive's :class:`DriveMotion`, its frames named ``fixed``, ``base`` and ``camera``.
+
+    A frame whose image stamp lies between two usable oxts samples with an unusable one
+    between them gets that sample's reason (the pose would be guessed across it); a stamp
+    outside the usable samples is left to the lookup's :class:`ExtrapolationError`.
+    """
+    reasons, poses = _oxts_samples(drive)
+    oxts = drive.streams["oxts"].stamps
+    usable = sorted(poses)
+    stamps = [oxts[index] for index in usable]
+    history = TransformHistory(cache_ns=max(stamps[-1] - stamps[0], 1) if stamps else 1)
+    history.add_static([StaticTransform(base, camera, _camera_to_imu(drive))])
+    for index in usable:
+        history.add(oxts[index], StaticTransform(fixed, base, poses[index]))
+    images = list(drive.streams["image_02"].stamps)
+    problems: list[str | None] = []
+    for stamp in images:
+        at = bisect.bisect_left(stamps, stamp)
+        if at < len(stamps) and stamps[at] == stamp:
+            problems.append(None)
+            continue
+        low = usable[at - 1] if at > 0 else -1
+        high = usable[at] if at < len(usable) else len(reasons)
+        problems.append(next((r for r in reasons[low + 1 : high] if r is not None), None))
+    return DriveMotion(history, camera, images, problems)
