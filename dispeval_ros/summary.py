@@ -19,14 +19,18 @@ from typing import Any, Protocol
 import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
-from dispeval_ros.core.measures import applies
+from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.measures import GT_FREE_PREFIX, applies
 from dispeval_ros.core.objectives import (
     default_objective_measures,
     has_points,
+    pair_objectives,
+    split_pair_measures,
     split_timing_measures,
     timing_objectives,
 )
 from dispeval_ros.core.records import FrameTiming, MatchCounts
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.core.timing import Timing, benchmark_keys, timing_of
 from dispeval_ros.errors import ConfigurationError
 
@@ -45,6 +49,34 @@ class SequenceSummary:
     models: ModelResult | None
     timing: dict[str, Timing] | None = None
     """Per method, its latency and rate over the sequence; None: no latency recorded."""
+    pairs: dict[str, PairScores] | None = None
+    """Per method with a pair, its pairs of consecutive frames pooled (``--temporal``); None:
+    not recorded (a database older than the pairs table)."""
+
+    motion: dict[str, tuple[int, TemporalSums]] | None = None
+    """Per method: its ego-motion pairs and their residual sums pooled (``egomotion``)."""
+
+    def egomotion_dict(self) -> dict[str, Any] | None:
+        """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
+        if self.motion is None:
+            return None
+        return {
+            method: {
+                "pairs": pairs,
+                "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
+                "offsets": list(sums.offsets),
+            }
+            for method, (pairs, sums) in self.motion.items()
+        }
+
+    def temporal_dict(self) -> dict[str, Any] | None:
+        """The JSON ``temporal`` entry: per method its pairs and values by criterion."""
+        if self.pairs is None:
+            return None
+        return {
+            method: {"pairs": scores.pairs, "criteria": scores.to_dict()}
+            for method, scores in self.pairs.items()
+        }
 
 
 @dataclass
@@ -58,6 +90,10 @@ class RunSummary:
     overall: ModelResult | None
     overall_matrix: np.ndarray | None = field(default=None, repr=False)
     """Methods × ``overall_objectives`` (every sequence's objectives side by side)."""
+    temporal: str | None = None
+    """The temporal preset the run scored pairs under (None: no ``--temporal``)."""
+    egomotion: bool = False
+    """Whether the run scored the ego-motion residual of its pairs."""
 
     def benchmark_document(self) -> dict[str, Any]:
         """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
@@ -88,6 +124,8 @@ class RunSummary:
                     "latency": None
                     if s.timing is None
                     else {m: t.to_dict() for m, t in s.timing.items()},
+                    **({"temporal": s.temporal_dict()} if self.temporal else {}),
+                    **({"egomotion": s.egomotion_dict()} if self.egomotion else {}),
                 }
                 for s in self.sequences
             ],
@@ -161,6 +199,25 @@ def sequence_timing(store: object, sequence: str) -> dict[str, Timing] | None:
     return result
 
 
+def run_temporal(store: object) -> str | None:
+    """The temporal preset a store's run was configured with (None: none, or live totals)."""
+    config = getattr(store, "config", None)
+    preset = config().get("temporal") if callable(config) else None
+    return str(preset) if preset else None
+
+
+def sequence_motion(store: object, sequence: str) -> dict[str, tuple[int, TemporalSums]] | None:
+    """Per method, its ego-motion pairs in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "motion_pairs", None)
+    return reader(sequence) if reader else None
+
+
+def sequence_pairs(store: object, sequence: str) -> dict[str, PairScores] | None:
+    """Per method, its pairs in ``sequence`` pooled (None: not recorded, or live totals)."""
+    reader = getattr(store, "pairs", None)
+    return reader(sequence) if reader else None
+
+
 def _objectives(
     store: ScoreSource,
     sequence: str,
@@ -201,6 +258,7 @@ def summarize(
     computed = store.measures()
     measures = measures or default_objective_measures(computed)
     scored, timed = split_timing_measures(measures)
+    scored, paired = split_pair_measures(scored)
     unknown = [m for m in scored if computed and m not in computed]
     if unknown:
         raise ConfigurationError(
@@ -214,14 +272,26 @@ def summarize(
     for sequence in store.sequences():
         names, block, totals, common = _objectives(store, sequence, methods, scored, granularity)
         timing = sequence_timing(store, sequence)
+        pairs = sequence_pairs(store, sequence)
         if common and timed:
             timing_names, timing_block = timing_objectives(timing, sequence, methods, timed)
             names, block = [*names, *timing_names], np.hstack([block, timing_block])
+        if common and paired:
+            pair_names, pair_block = pair_objectives(pairs, sequence, methods, paired)
+            names, block = [*names, *pair_names], np.hstack([block, pair_block])
         present = [m for m in methods if m in totals]
         models = evaluate_models(present, block) if len(present) > 1 and names else None
         summaries.append(
             SequenceSummary(
-                sequence, store.match_counts(sequence), totals, common, names, models, timing
+                sequence,
+                store.match_counts(sequence),
+                totals,
+                common,
+                names,
+                models,
+                timing,
+                pairs,
+                sequence_motion(store, sequence),
             )
         )
         if names:
@@ -231,7 +301,14 @@ def summarize(
     overall = None
     if len(summaries) > 1 and matrix is not None and len(methods) > 1:
         overall = evaluate_models(methods, matrix)
-    return RunSummary(granularity, list(measures), summaries, all_names, overall, matrix)
+    stored = [p.preset.name for s in summaries for p in (s.pairs or {}).values()]
+    temporal = run_temporal(store) or (stored[0] if stored else None)  # (live: pairs only)
+    config = getattr(store, "config", None)
+    egomotion = bool(config().get("egomotion")) if callable(config) else False
+    egomotion = egomotion or any(s.motion for s in summaries)
+    return RunSummary(
+        granularity, list(measures), summaries, all_names, overall, matrix, temporal, egomotion
+    )
 
 
 def objective_table(

@@ -31,7 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "then DIR/frames.csv and DIR/summary.json, and the per-sequence summary is printed.",
     )
     add_bags_argument(parser)
-    run = streams.add_stream_options(parser)
+    run = streams.add_stream_options(parser, egomotion=True)
     run.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     run.add_argument(
         "--scheduler",

@@ -33,12 +33,13 @@ import numpy as np
 
 from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, wrapped
+from dispeval_ros.cli.summary import EGOMOTION_LABEL as LABEL
+from dispeval_ros.cli.summary import EGOMOTION_MASKED as MASKED
 from dispeval_ros.cli.summary import fitted_tables
 from dispeval_ros.cli.temporal_eval import Estimates, Runs, frame_runs
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
 from dispeval_ros.core.egomotion import (
-    STATUS_NAMES,
     EgoMotionOptions,
     MotionFrame,
     PinholeCamera,
@@ -66,11 +67,6 @@ if TYPE_CHECKING:
     from dispeval_ros.io.kitti_raw import DriveMotion
 
 OPTION = "--egomotion"
-LABEL = (
-    "ground-truth-free: temporal noise of the estimate moved by the camera's motion, no GT; "
-    "not bias (a constant offset is fitted and removed per pair)"
-)
-"""What every ``--egomotion`` output says it is (the text title and the JSON ``label``)."""
 POSES = (
     "KITTI raw oxts (convertOxtsToPose) carried to the left camera by calib_imu_to_velo, "
     "interpolated at the left images' stamps (tf2's lookup, never extrapolated)"
@@ -82,8 +78,6 @@ DRIFT_UNITS = {
     "mean_error": "px",
 }  # fmt: skip
 """The units of the drift's values (``bad_X``: % of the counted points)."""
-MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
-"""The mask counts of the table, in the order the masks apply."""
 DRIFT_LABEL = (
     "temporal noise against the LiDAR scans: the change of each point's error from scan t to "
     "scan t + k along the motion (static world); a constant bias drifts 0; not accuracy"

@@ -8,12 +8,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.objectives import default_objective_measures
+from dispeval_ros.core.objectives import default_objective_measures, is_pair_measure
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.stream.config import FieldNames, core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
+from dispeval_ros.stream.pairs import PAIR_GAP_RULE
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
@@ -21,8 +22,13 @@ if TYPE_CHECKING:
 _NS_PER_MS = 1_000_000
 
 
-def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
-    """Topics, sync, evaluation and model options; returns the "run" group for the rest."""
+def add_stream_options(
+    parser: argparse.ArgumentParser, egomotion: bool = False
+) -> argparse._ArgumentGroup:
+    """Topics, sync, evaluation and model options; returns the "run" group for the rest.
+
+    ``egomotion``: also ``--egomotion`` (the commands that read /tf over time).
+    """
     topics = parser.add_argument_group("topics")
     gt = topics.add_mutually_exclusive_group()
     gt.add_argument("--gt", metavar="TOPIC", help="ground-truth sensor_msgs/Image topic")
@@ -100,6 +106,7 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
         help=f"{LATENESS_RULE} (ms, default {lateness_ms:g})",
     )
     common.add_evaluation_options(parser)
+    add_temporal_options(parser.add_argument_group("temporal"), egomotion)
     run = parser.add_argument_group("run")
     common.add_objective_options(run)
     run.add_argument(
@@ -111,6 +118,29 @@ def add_stream_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     return run
 
 
+def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False) -> None:
+    """``--temporal [PRESET]`` (the option of ``eval``), ``--pair-gap MS``, ``--egomotion``."""
+    from dispeval_ros.cli import temporal_eval
+
+    temporal_eval.add_options(group, "over each sequence's consecutive ground-truth frames")
+    gap_ms = core_default("pair_gap_ns") / _NS_PER_MS
+    group.add_argument(
+        "--pair-gap",
+        type=float,
+        default=gap_ms,
+        metavar="MS",
+        help=f"with --temporal or --egomotion: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
+    )
+    if egomotion:
+        group.add_argument(
+            "--egomotion",
+            action="store_true",
+            help="also score each method's ego-motion residual over the same pairs (temporal "
+            "noise without GT, on gtfree: criteria: frame t's estimate moved into frame t+1 by "
+            "the camera's motion from the bag's /tf; needs --camera-info; docs/method.md)",
+        )
+
+
 _NAMES = {
     "methods": "--method",
     "right_views": "--right-view",
@@ -119,6 +149,9 @@ _NAMES = {
     "right_info_topic": "--camera-info RIGHT",
     "left_image_topic": "--left-image",
     "right_image_topic": "--right-image",
+    "temporal": "--temporal",
+    "pair_gap_ns": "--pair-gap",
+    "egomotion": "--egomotion",
 }
 """How the options name :class:`CoreConfig`'s fields in its errors (``gt_topic``: see below)."""
 
@@ -196,19 +229,32 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         mu=evaluator.mu,
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
+        temporal=args.temporal,
+        egomotion=bool(getattr(args, "egomotion", False)),  # (bag only, for now)
+        pair_gap_ns=round(non_negative_ms(args.pair_gap, "--pair-gap") * _NS_PER_MS),
         names=names,
     )
     if args.objective_measures is None:  # follow the measures scored (vpe without GT)
         args.objective_measures = default_objective_measures(config.scored_measures)
+    pairs = config.pair_stage()
+    paired = pairs.scorer.measures if pairs is not None and pairs.scorer is not None else ()
     unknown = [
         m
         for m in args.objective_measures
-        if m not in config.scored_measures and not is_timing_measure(m)
+        if m not in config.scored_measures and not is_timing_measure(m) and m not in paired
     ]
     if unknown:  # found now, not after the whole recording was scored
+        temporal = (
+            f", nor pair measures ({', '.join(paired)})"
+            if paired
+            else " (pair measures need --temporal)"
+            if any(map(is_pair_measure, unknown))
+            else ""
+        )
         raise ConfigurationError(
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
             f"({', '.join(config.scored_measures)}) nor timing ({', '.join(TIMING_MEASURES)})"
+            + temporal
         )
     return config
 

@@ -7,6 +7,7 @@ from typing import Any
 
 from dispeval_ros.cli.output import plural, table, text_width, wrapped
 from dispeval_ros.core import ModelResult
+from dispeval_ros.core.egomotion import STATUS_NAMES
 from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
 from dispeval_ros.core.objectives import has_points
 from dispeval_ros.core.timing import TIMING_MEASURES, WINDOW_NS
@@ -213,6 +214,87 @@ def latency_text(timing: Mapping[str, Any] | None) -> str:
     return wrapped(title) + "\n" + fitted_tables(header, rows, keep=1)
 
 
+def pair_table(
+    values: Mapping[str, Mapping[str, Mapping[str, float]]], measures: Sequence[str]
+) -> str:
+    """Pair measures by criterion and method (``values``: method → criterion → measure)."""
+    from dispeval_ros.core.temporal import pair_unit
+
+    header = ["criterion", "method", "n_pair", *(f"{m} [{pair_unit(m)}]" for m in measures)]
+    rows: list[list[object]] = []
+    for criterion in next(iter(values.values())):
+        for method, by_criterion in values.items():
+            one = by_criterion[criterion]
+            rows.append([criterion, method, int(one["n_pair"]), *(one[m] for m in measures)])
+    return fitted_tables(header, rows, keep=2)
+
+
+NO_PAIRS = (
+    "temporal: not recorded (results written before dispeval stored pairs of consecutive frames)"
+)
+
+
+def temporal_text(pairs: Mapping[str, Any] | None, preset: str) -> str:
+    """A sequence's pair measures (``--temporal``), or why there are none.
+
+    ``pairs``: method → its pooled :class:`~dispeval_ros.core.temporal.PairScores`; None: not
+    recorded; empty: no method has two consecutive frames.
+    """
+    if pairs is None:
+        return wrapped(NO_PAIRS)
+    if not pairs:
+        return wrapped("\ntemporal: no pair (no method has an estimate of two consecutive frames)")
+    first = next(iter(pairs.values()))
+    title = (
+        f"\ntemporal consistency (--temporal {preset}: {first.preset.description}; each "
+        "method's pairs of consecutive frames pooled by their sums): "
+        + ", ".join(f"{method} {plural(p.pairs, 'pair')}" for method, p in pairs.items())
+    )
+    table_text = pair_table({m: p.to_dict() for m, p in pairs.items()}, first.measures)
+    return wrapped(title) + "\n" + table_text
+
+
+EGOMOTION_LABEL = (
+    "ground-truth-free: temporal noise of the estimate moved by the camera's motion, no GT; "
+    "not bias (a constant offset is fitted and removed per pair)"
+)
+"""What every ego-motion residual output says it is (``eval --egomotion``'s text title and
+JSON ``label``, the bag tables' title)."""
+EGOMOTION_MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
+"""The mask counts of the residual's tables, in the order the masks apply."""
+
+
+def egomotion_text(motion: Mapping[str, Any] | None) -> str:
+    """A sequence's ego-motion residuals (``egomotion``), or why there are none.
+
+    ``motion``: method → (pairs, pooled :class:`~dispeval_ros.core.egomotion.TemporalSums`);
+    None: not recorded; empty: no pair.
+    """
+    if motion is None:
+        return wrapped("\nego-motion residual: not recorded (results older than it)")
+    if not motion:
+        return wrapped("\nego-motion residual: no pair (no method has two consecutive frames)")
+    first = next(iter(motion.values()))[1]
+    bad = [f"bad_{t:g}" for t in first.thresholds]
+    header = [
+        "criterion", "method", "pairs", "n_residual", "mean_abs [px]", "rms [px]",
+        *(f"{b} [%]" for b in bad), "mean_abs_z [m]", "rms_z [m]", *EGOMOTION_MASKED,
+    ]  # fmt: skip
+    rows: list[list[object]] = []
+    for criterion in first.criteria:
+        for method, (pairs, sums) in motion.items():
+            one = sums.summary(criterion)
+            rows.append([
+                GT_FREE_PREFIX + criterion, method, pairs, int(one["n_residual"]),
+                one["mean_abs"], one["rms"], *(one[b] for b in bad), one["mean_abs_z"],
+                one["rms_z"], *(int(one[m]) for m in EGOMOTION_MASKED),
+            ])  # fmt: skip
+    title = (
+        f"\nego-motion residual of each method's pairs of consecutive frames ({EGOMOTION_LABEL})"
+    )
+    return wrapped(title) + "\n" + fitted_tables(header, rows, keep=2)
+
+
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
@@ -233,6 +315,10 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
         latency = latency_text(sequence.timing)
         if latency:
             parts.append(latency)
+        if summary.temporal:
+            parts.append(temporal_text(sequence.pairs, summary.temporal))
+        if getattr(summary, "egomotion", False):
+            parts.append(egomotion_text(sequence.motion))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from dispeval_ros.cli.output import plural, wrapped
-from dispeval_ros.cli.summary import fitted_tables
+from dispeval_ros.cli.summary import pair_table
 from dispeval_ros.core import registry
 from dispeval_ros.core.evaluator import Evaluator, Reference
 from dispeval_ros.core.kernels.temporal import PAIR_BAD
@@ -40,8 +40,14 @@ Estimates = Sequence[tuple[str, Path]]
 """A frame's estimates: method and file."""
 
 
-def add_options(parser: argparse.ArgumentParser) -> None:
-    """``--temporal [PRESET]`` (off by default: nothing changes without it)."""
+def add_options(
+    parser: argparse._ActionsContainer, scope: str = "with --scene of consecutive frames"
+) -> None:
+    """``--temporal [PRESET]`` (off by default: nothing changes without it).
+
+    ``scope``: where the pairs come from, as the command's help says it (``eval`` and the
+    stream commands share the option and its wording).
+    """
     parser.add_argument(
         "--temporal",
         nargs="?",
@@ -49,7 +55,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         choices=tuple(PRESETS),
         default=None,
         metavar="PRESET",
-        help="with --scene of consecutive frames: also score each method's frame-to-frame "
+        help=f"{scope}: also score each method's frame-to-frame "
         "consistency (tepe, tepe_r, tepe_bad_X) over its consecutive frame pairs, normalised "
         f"as preset {' or '.join(PRESETS)} (default {DEFAULT_PRESET}; docs/method.md)",
     )
@@ -280,14 +286,7 @@ class TemporalResult:
             )
         ]
         scored = {m: one.values for m, one in self.methods.items() if one.values is not None}
-        measures = self.scorer.measures
-        header = ["criterion", "method", "n_pair", *(f"{m} [{pair_unit(m)}]" for m in measures)]
-        rows: list[list[object]] = []
-        for criterion in next(iter(scored.values())):
-            for method, values in scored.items():
-                one = values[criterion]
-                rows.append([criterion, method, int(one["n_pair"]), *(one[m] for m in measures)])
-        lines.append(fitted_tables(header, rows, keep=2))
+        lines.append(pair_table(scored, self.scorer.measures))
         for method, result in self.methods.items():
             runs = "; ".join(
                 run[0] if len(run) == 1 else f"{run[0]}–{run[-1]}" for run in result.runs

@@ -8,6 +8,7 @@ import numpy as np
 
 from dispeval_ros.core import registry
 from dispeval_ros.core.measures import GT_FREE_MEASURES, HIGHER_IS_BETTER
+from dispeval_ros.core.temporal import PairScores, pair_bad_threshold
 from dispeval_ros.core.timing import TIMING_MEASURES, Timing, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 
@@ -80,6 +81,61 @@ def objective_matrix(
                 matrix[row, column] = -value if measure in HIGHER_IS_BETTER else value
                 column += 1
     return methods, names, matrix
+
+
+def is_pair_measure(name: str) -> bool:
+    """Whether ``name`` is a temporal pair measure (``tepe``, ``tepe_r``, ``tepe_bad_X``)."""
+    known = name in registry.PAIR_BY_NAME and name not in registry.PAIR_FAMILIES
+    return known or pair_bad_threshold(name) is not None
+
+
+def split_pair_measures(measures: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The other measures and the temporal pair measures (``tepe``…) of ``measures``."""
+    return (
+        [m for m in measures if not is_pair_measure(m)],
+        [m for m in measures if is_pair_measure(m)],
+    )
+
+
+def pair_objectives(
+    pairs: Mapping[str, PairScores] | None,
+    sequence: str,
+    methods: Sequence[str],
+    measures: Sequence[str],
+) -> tuple[list[str], np.ndarray]:
+    """The temporal objectives of a sequence: ``criterion/measure @sequence`` per criterion.
+
+    Like the timing objectives (:func:`timing_objectives`), each method's own pairs pooled by
+    their sums (the measures are means, which fewer pairs do not lower); only criteria with a
+    pixel pair for some method. Without pairs recorded, or a method without a pair, one line.
+    """
+    if not measures:
+        return [], np.empty((len(methods), 0))
+    if not pairs:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(measures)}: no temporal pair recorded for "
+            f"sequence {sequence} (run with --temporal, on a sequence of two frames or more)"
+        )
+    missing = [m for m in methods if m not in pairs]
+    if missing:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(measures)}: {', '.join(missing)} has no pair of "
+            f"consecutive frames in sequence {sequence}"
+        )
+    first = pairs[methods[0]]
+    unknown = [m for m in measures if m not in first.measures]
+    if unknown:
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(unknown)}: not among the pair measures scored "
+            f"({', '.join(first.measures)})"
+        )
+    criteria = [c for c in first.criteria if any(p[c]["n_pair"] > 0 for p in pairs.values())]
+    names = [f"{c}/{m} @{sequence}" for c in criteria for m in measures]
+    block = np.array(
+        [[pairs[method][c][m] for c in criteria for m in measures] for method in methods],
+        dtype=np.float64,
+    ).reshape(len(methods), len(names))
+    return names, block
 
 
 def split_timing_measures(measures: Sequence[str]) -> tuple[list[str], list[str]]:

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.egomotion import TemporalSums
     from dispeval_ros.core.measures import Scores
+    from dispeval_ros.core.temporal import PairScores
 
-__all__ = ["FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+__all__ = ["FrameMotion", "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,32 @@ class FrameTiming:
     def delay(self) -> int:
         """Arrival minus the estimate's header stamp (ns): how late the map came."""
         return self.arrival - self.estimate_stamp
+
+
+@dataclass(frozen=True)
+class FramePair:
+    """One method's pair measures of two consecutive GT frames (stamps in nanoseconds).
+
+    ``stamp``: the later frame's (the pair belongs to the unit that keeps it); ``previous``:
+    the earlier frame's.
+    """
+
+    sequence: str
+    stamp: int
+    method: str
+    previous: int
+    scores: PairScores
+
+
+@dataclass(frozen=True)
+class FrameMotion:
+    """One method's ego-motion residual sums of two consecutive frames (as :class:`FramePair`)."""
+
+    sequence: str
+    stamp: int
+    method: str
+    previous: int
+    sums: TemporalSums
 
 
 @dataclass(frozen=True)

@@ -52,8 +52,8 @@ from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     StatusRecord,
     problem_statuses,
+    result_statuses,
     score_vector,
-    scores_status,
     vector_labels,
 )
 
@@ -213,17 +213,7 @@ class DdsEvaluator:
 
     def records(self, result: FrameResult) -> list[StatusRecord]:
         """The statuses of one frame: one per scored method, one ERROR per problem."""
-        records = [
-            scores_status(
-                method,
-                self.config.methods[method],
-                scores,
-                self.alarms,
-                result.estimate_stamps.get(method),
-                result.arrivals.get(method),
-            )
-            for method, scores in result.scores.items()
-        ]
+        records = result_statuses(result, self.config.methods, self.alarms)
         records.extend(problem_statuses(result, self.config.methods, self.config.gt_topic))
         return records
 

@@ -29,6 +29,8 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of
 from dispeval_ros.dds.evaluator import MIN_RESTART_NS
 from dispeval_ros.dds.transport import DdsTransport, RawWriter, Received
@@ -41,7 +43,12 @@ from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import (
+    arrivals_of,
+    read_pairs,
+    read_problem,
+    scores_from_status,
+)
 from dispeval_ros.summary import RunSummary
 
 SUMMARY_SHARE = 0.1
@@ -103,6 +110,8 @@ class DdsSummarizer:
         stamp, records = records_of(received.msg)
         scores: dict[str, Scores] = {}
         arrivals: dict[str, tuple[int, int]] = {}
+        pairs: dict[str, tuple[int, PairScores]] = {}
+        motion: dict[str, tuple[int, TemporalSums]] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -116,10 +125,11 @@ class DdsSummarizer:
                     problems.append(problem)
                 else:
                     scores[record.name] = scores_from_status(record.values)
+                    read_pairs(record, pairs, motion)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries, arrivals)
+        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion)
 
     def add(
         self,
@@ -128,10 +138,14 @@ class DdsSummarizer:
         problems: list[tuple[str | None, str]] | None = None,
         deliveries: list[Delivery] | None = None,
         arrivals: Mapping[str, tuple[int, int]] | None = None,
+        pairs: Mapping[str, tuple[int, PairScores]] | None = None,
+        motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups.
 
-        ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency).
+        ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency);
+        ``pairs``, ``motion``: per method, the pair ending at the frame (``temporal``) and its
+        ego-motion residual (``egomotion``).
         """
         summary = None
         with self._lock:
@@ -150,7 +164,7 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores, arrivals)
+                summary = self.core.add(stamp, scores, arrivals, pairs, motion)
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)

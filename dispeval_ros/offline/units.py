@@ -19,24 +19,37 @@ import bisect
 import contextlib
 import dataclasses
 import os
-import threading
 import traceback
 from collections import Counter, OrderedDict, deque
-from collections.abc import Generator, Iterable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+from collections.abc import Collection, Generator, Iterable, Iterator
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
-from queue import Full, Queue
-from typing import Any, TypeVar
+from typing import Any
 
-from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.errors import DispevalError, InputError
 from dispeval_ros.io.bags import BagSource, require_topic
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.io.store import PreparedUnit, failure_record, prepare_unit
 from dispeval_ros.offline.memory import keep_frames_on_the_heap
+from dispeval_ros.offline.threads import (  # noqa: F401 (executors and tests import them here)
+    close_scoring_pools,
+    read_ahead,
+    scoring_pool,
+    scoring_threads,
+)
+from dispeval_ros.stream.config import TF_STATIC_TOPIC, TF_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.join import FrameSet, JoinEvent
+from dispeval_ros.stream.pairs import MotionPair
 
 DEFAULT_SLICE_NS = 5_000_000_000
 AUTO_SLICE_BOUNDS_NS = (1_000_000_000, 60_000_000_000)
@@ -45,14 +58,11 @@ at least twice the margin a unit reads beyond each edge (so reading costs at mos
 UNITS_PER_WORKER = 4
 """``--slice auto`` cuts a bag into about this many units per worker (load balance)."""
 OPEN_BAGS_PER_PROCESS = 16
-READ_AHEAD = 16
-"""Messages read ahead of the scoring (a few frames: each holds its messages in memory)."""
 FRAMES_IN_FLIGHT_PER_THREAD = 2
 """Frames handed to each scoring thread ahead of the oldest one collected (none waits idle)."""
 DENSE_SLICES = 10_000
 """Bags of up to this many slices (or twice their messages) are cut without a pass over them."""
 _FIRST, _LAST = -(2**62), 2**62
-_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -80,6 +90,10 @@ class UnitResult:
     counts: dict[str, MatchCounts] = field(default_factory=dict)
     timing: list[FrameTiming] = field(default_factory=list)
     """When each method's estimate of a kept frame was logged (scored or not)."""
+    pairs: list[FramePair] = field(default_factory=list)
+    """With ``temporal``: the pairs whose later frame this unit kept."""
+    motion: list[FrameMotion] = field(default_factory=list)
+    """With ``egomotion``: the ego-motion residuals of those pairs."""
     messages: int = 0
     kept: dict[int, int] = field(default_factory=dict)
     """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
@@ -107,7 +121,14 @@ class UnitRows:
         """The rows of an evaluated unit."""
         unit = result.unit
         rows = prepare_unit(
-            unit.sequence, unit.name, result.frames, result.problems, result.counts, result.timing
+            unit.sequence,
+            unit.name,
+            result.frames,
+            result.problems,
+            result.counts,
+            result.timing,
+            result.pairs,
+            result.motion,
         )
         return cls(
             unit,
@@ -231,6 +252,13 @@ def occupied_ns(source: BagSource, grain_ns: int) -> int:
 def check_topics(source: BagSource, config: CoreConfig) -> None:
     """Every configured topic exists with the expected type (else one error listing the bag's topics)."""
     for topic, msgtype in config.topics.items():
+        if config.egomotion and topic == TF_STATIC_TOPIC and topic not in source.topics:
+            continue  # the camera frame may be on /tf itself
+        if config.egomotion and topic == TF_TOPIC and topic not in source.topics:
+            raise InputError(
+                f"{source.path} has no {topic} to take the camera's motion from (--egomotion): "
+                "record the odometry's transforms (odom → base_link) with the streams"
+            )
         if topic == config.tf_topic and topic not in source.topics:
             raise InputError(
                 f"{source.path} has no {topic} to take the LiDAR → camera transform from; "
@@ -245,8 +273,8 @@ def push_static_transforms(source: BagSource, core: EvaluationCore) -> None:
     Static transforms are latched: recorded once, near the start, so a slice of the bag read
     on its own would miss them.
     """
-    topic = core.config.tf_topic
-    if topic:
+    topic = core.config.tf_topic or (TF_STATIC_TOPIC if core.config.egomotion else None)
+    if topic and topic in source.topics:
         for _, _, msg in source.messages([topic]):
             core.push(topic, msg)
 
@@ -331,81 +359,6 @@ def plan_bag(path: Path, sequence: str, config: CoreConfig, slice_ns: int) -> Ba
 # -- running --------------------------------------------------------------------------------
 
 
-def scoring_threads(workers: int = 1) -> int:
-    """Threads that score a frame's methods in each of ``workers`` processes sharing the cores."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        cores = os.cpu_count() or 1
-    return max(1, cores // max(1, workers))
-
-
-_pools: dict[tuple[int, int], ThreadPoolExecutor] = {}
-
-
-def scoring_pool(threads: int) -> ThreadPoolExecutor | None:
-    """This process's pool of ``threads`` scoring threads, kept across units (None for one)."""
-    if threads <= 1:
-        return None
-    key = (os.getpid(), threads)  # a forked child makes its own: threads do not survive fork
-    pool = _pools.get(key)
-    if pool is None:
-        pool = _pools[key] = ThreadPoolExecutor(threads, thread_name_prefix="dispeval-score")
-    return pool
-
-
-def close_scoring_pools() -> None:
-    """Stop this process's scoring threads (a process with threads forks unsafely)."""
-    while _pools:
-        _pools.popitem()[1].shutdown(wait=True)
-
-
-def read_ahead(items: Iterator[_T], depth: int = READ_AHEAD) -> Generator[_T, None, None]:
-    """``items`` taken on a thread of their own, up to ``depth`` ahead of the caller.
-
-    Reading a bag (file reads, decompression, copies) then overlaps the scoring of the
-    frames read before, which releases the GIL in its kernels. What ``items`` raises is
-    raised here at the same point of the sequence. The thread has stopped when this
-    generator ends or is closed, so the bag is never read by two threads at once.
-    """
-    queue: Queue[tuple[bool, Any]] = Queue(depth)
-    stop = threading.Event()
-
-    def put(entry: tuple[bool, Any]) -> bool:
-        while not stop.is_set():
-            try:
-                queue.put(entry, timeout=0.1)
-                return True
-            except Full:
-                continue
-        return False
-
-    def produce() -> None:
-        try:
-            for item in items:
-                if not put((True, item)):
-                    return
-        except BaseException as error:  # handed to the consumer, raised there
-            put((False, error))
-            return
-        put((False, None))
-
-    thread = threading.Thread(target=produce, name="dispeval-read", daemon=True)
-    thread.start()
-    try:
-        while True:
-            is_item, value = queue.get()
-            if is_item:
-                yield value
-            elif value is None:
-                return
-            else:
-                raise value
-    finally:
-        stop.set()
-        thread.join()
-
-
 def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResult:
     """Read, join and score one slice; per-frame problems are recorded, never raised.
 
@@ -423,13 +376,25 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         executor=pool if frame_pool is None else None,
         repeat_memory_ns=None,  # a unit is short: every GT stamp it saw is remembered
         seen_stamps=unit.seen_stamps,
+        wait_for_motion=True,
     )
     inside = range(unit.start_ns, unit.stop_ns)  # of log time: the arrival clock
     matched: Counter[str] = Counter()
     failed: Counter[str] = Counter()
-    scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult]]] = deque()
+    scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult], bool]] = deque()
+    before: list[FrameSet[Any, Any]] = []  # the last frame not kept, for the pair it begins
 
-    def collect(frame_set: FrameSet[Any, Any], frame: FrameResult) -> None:
+    def collect(frame_set: FrameSet[Any, Any], frame: FrameResult, keep: bool = True) -> None:
+        core.pair(frame)  # in the join's order, kept or not (see stream/pairs.py)
+        result.motion.extend(motion_records(unit.sequence, frame.motion_pairs, result.kept))
+        if not keep:
+            return
+        if frame.pair_previous is not None:
+            previous = frame.pair_previous
+            result.pairs.extend(
+                FramePair(unit.sequence, frame.stamp, method, previous, scores)
+                for method, scores in frame.pairs.items()
+            )
         result.timing.extend(
             FrameTiming(unit.sequence, frame.stamp, method, frame.sent[method], arrival)
             for method, arrival in frame.arrivals.items()
@@ -446,22 +411,29 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         )
 
     def collect_oldest() -> None:
-        frame_set, future = scoring.popleft()
-        collect(frame_set, future.result())
+        frame_set, future, keep = scoring.popleft()
+        collect(frame_set, future.result(), keep)
+
+    def score(frame_set: FrameSet[Any, Any], keep: bool) -> None:
+        if frame_pool is None:
+            collect(frame_set, core.score(frame_set), keep)
+            return
+        scoring.append((frame_set, frame_pool.submit(core.scorer(frame_set)), keep))
+        while len(scoring) > FRAMES_IN_FLIGHT_PER_THREAD * threads:
+            collect_oldest()
 
     def handle(frame_sets: list[FrameSet[Any, Any]]) -> None:
         for frame_set in frame_sets:
             if frame_set.arrival not in inside:
+                before[:] = [frame_set] if core.pairs is not None else []
                 continue
+            if before:  # the earlier frame of the pair this kept frame ends (not stored)
+                score(before.pop(), False)
             result.kept[frame_set.stamp] = frame_set.arrival
-            if frame_pool is None:
-                collect(frame_set, core.score(frame_set))
-                continue
-            scoring.append((frame_set, frame_pool.submit(core.scorer(frame_set))))
-            while len(scoring) > FRAMES_IN_FLIGHT_PER_THREAD * threads:
-                collect_oldest()
+            score(frame_set, True)
 
-    read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns
+    lookback = config.pair_gap_ns if core.pairs is not None else 0  # the frame before
+    read_from = None if unit.start_ns <= _FIRST else unit.start_ns - unit.margin_ns - lookback
     read_to = None if unit.stop_ns >= _LAST else unit.stop_ns + unit.margin_ns
 
     def messages(source: BagSource) -> Iterator[tuple[str, int, Any]]:
@@ -472,7 +444,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         """
         if read_from is not None:
             yield from source.messages([config.gt_topic], read_from - unit.margin_ns, read_from)
-        yield from source.messages(list(config.topics), read_from, read_to)
+        topics = [t for t in config.topics if t in source.topics]  # (/tf_static: optional)
+        yield from source.messages(topics, read_from, read_to)
 
     try:
         source = open_bag(unit.path)
@@ -486,6 +459,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     handle(core.flush())
     while scoring:
         collect_oldest()
+    tail = core.finish_pairs()  # ego-motion pairs that waited for /tf to the end
+    if tail is not None:
+        result.motion.extend(motion_records(unit.sequence, tail.motion, result.kept))
+        result.problems.extend(Problem(unit.sequence, None, m, text) for m, text in tail.problems)
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
     result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")
@@ -502,6 +479,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         if kind == "repeated"
     )
     result.problems.extend(unmatched_hints(config, unit.sequence, kept, core.joiner.events or []))
+    if core.motion is not None:  # /tf samples refused (said per unit, with their count)
+        result.problems.extend(
+            Problem(unit.sequence, None, None, text) for text in core.motion.problems()
+        )
     for method in config.methods:
         result.counts[method] = MatchCounts(
             matched=matched[method],
@@ -510,6 +491,14 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             failed=failed[method],
         )
     return result
+
+
+def motion_records(
+    sequence: str, pairs: Iterable[MotionPair], kept: Collection[int]
+) -> list[FrameMotion]:
+    """The ego-motion pairs whose later frame a unit keeps, as records to store."""
+    return [FrameMotion(sequence, p.stamp, p.method, p.previous, p.sums) for p in pairs
+            if p.stamp in kept]  # fmt: skip
 
 
 def unmatched_hints(

@@ -81,8 +81,8 @@ from dispeval_ros.stream.topics import (
 from dispeval_ros.stream.vectors import (
     AlarmThresholds,
     problem_statuses,
+    result_statuses,
     score_vector,
-    scores_status,
     vector_labels,
 )
 
@@ -349,17 +349,7 @@ class EvaluatorNode(Node):
     def _publish(self, result: FrameResult) -> None:
         alarms = self._alarms
         frame_id = self._gt_frame_id
-        records = [
-            scores_status(
-                method,
-                self.config.methods[method],
-                scores,
-                alarms,
-                result.estimate_stamps.get(method),
-                result.arrivals.get(method),
-            )
-            for method, scores in result.scores.items()
-        ]
+        records = result_statuses(result, self.config.methods, alarms)
         for _, problem in result.problems:
             self.get_logger().warning(problem, throttle_duration_sec=LOG_PERIOD)
         records.extend(problem_statuses(result, self.config.methods, self.config.gt_topic))

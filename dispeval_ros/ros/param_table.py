@@ -12,8 +12,10 @@ from dataclasses import dataclass
 
 from dispeval_ros.core import registry
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
+from dispeval_ros.core.temporal import PRESETS
 from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
 from dispeval_ros.stream.join import LATENESS_RULE
+from dispeval_ros.stream.pairs import PAIR_GAP_RULE
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.topics import (
     ERROR_COLOR_LEAF,
@@ -218,6 +220,23 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         core_default("lateness_ns") / NS_PER_SECOND,
         f"{LATENESS_RULE[0].upper()}{LATENESS_RULE[1:]} (s)",
         "[0, 600] s",
+        low=0.0,
+        high=600.0,
+    ),
+    Param(
+        "temporal",
+        STRING,
+        "",
+        "Also score each method's frame-to-frame consistency (tepe, tepe_r, tepe_bad_X) over "
+        "consecutive ground-truth frames, normalised as this preset (docs/method.md); empty: off",
+        f"empty | {' | '.join(PRESETS)}",
+    ),
+    Param(
+        "pair_gap",
+        DOUBLE,
+        core_default("pair_gap_ns") / NS_PER_SECOND,
+        f"With temporal: {PAIR_GAP_RULE} (s)",
+        "(0, 600] s",
         low=0.0,
         high=600.0,
     ),

@@ -81,6 +81,8 @@ ROS_NAMES = FieldNames(
         "right_info_topic": "right_camera_info",
         "left_image_topic": "left_image_topic",
         "right_image_topic": "right_image_topic",
+        "temporal": "temporal",
+        "pair_gap_ns": "pair_gap",
     },
     one="parameter ",
     many="parameters ",
@@ -178,6 +180,10 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         right_image_topic=right_image or None,
         right_views=parse_methods(right_views, "right_views") if right_views else {},
         gt_free_criteria=gt_free_criteria,
+        temporal=str(values.get("temporal", "")).strip() or None,
+        pair_gap_ns=_seconds_to_ns(
+            values.get("pair_gap", core_default("pair_gap_ns") / 1e9), "pair_gap"
+        ),
         names=ROS_NAMES,
     )
 

@@ -31,6 +31,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_srvs.srv import Trigger
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
 from dispeval_ros.ros import convert
@@ -41,7 +43,12 @@ from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_o
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-from dispeval_ros.stream.vectors import arrivals_of, read_problem, scores_from_status
+from dispeval_ros.stream.vectors import (
+    arrivals_of,
+    read_pairs,
+    read_problem,
+    scores_from_status,
+)
 from dispeval_ros.summary import RunSummary
 
 NODE_NAME = "dispeval_summarizer"
@@ -111,6 +118,8 @@ class SummarizerNode(Node):
         stamp = stamp_ns(msg.header)
         frame: dict[str, Scores] = {}
         arrivals: dict[str, tuple[int, int]] = {}
+        pairs: dict[str, tuple[int, PairScores]] = {}
+        motion: dict[str, tuple[int, TemporalSums]] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -125,6 +134,7 @@ class SummarizerNode(Node):
                         problems.append((stamp, *problem))
                     else:
                         frame[record.name] = scores_from_status(record.values)
+                        read_pairs(record, pairs, motion)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
@@ -141,7 +151,7 @@ class SummarizerNode(Node):
             if not frame and not arrivals:
                 return
             try:
-                summary = self._core.add(stamp, frame, arrivals)
+                summary = self._core.add(stamp, frame, arrivals, pairs, motion)
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

@@ -18,12 +18,15 @@ from dataclasses import InitVar, dataclass, field
 from typing import Any
 
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
+from dispeval_ros.core.egomotion import EgoMotionOptions
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, Evaluator
 from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GT_FREE_SCORED, GroundTruthFree
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import CloudFilter
+from dispeval_ros.core.temporal import PRESETS
 from dispeval_ros.core.transforms import rigid_matrix
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.pairs import DEFAULT_PAIR_GAP_NS, PairStage
 
 DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
 IMAGE_TYPE = "sensor_msgs/msg/Image"
@@ -31,6 +34,8 @@ CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 POINT_CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
+TF_TOPIC = "/tf"
+"""The transforms over time (ego-motion: ``odom → base_link`` …), read with ``egomotion``."""
 QUEUE_SIZE = 4
 """Joined frames waiting to be scored by a live front end before the oldest is dropped."""
 GT_KINDS = ("disparity", "depth", "pointcloud", "none")
@@ -89,6 +94,9 @@ _NEUTRAL = {
     "right_info_topic": "the right CameraInfo topic",
     "left_image_topic": "the left image topic",
     "right_image_topic": "the right image topic",
+    "temporal": "the temporal preset",
+    "pair_gap_ns": "the pair gap",
+    "egomotion": "the ego-motion residual",
 }
 NEUTRAL_NAMES = FieldNames()
 """The wording for Python callers: fields named in plain words."""
@@ -123,6 +131,14 @@ class CoreConfig:
     right_views: Mapping[str, str] = field(default_factory=dict)
     """Method → its right-view DisparityImage topic (for lrc); optional per method."""
     gt_free_criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA
+    temporal: str | None = None
+    """The temporal preset the pairs of consecutive GT frames are scored under (see
+    :mod:`~dispeval_ros.stream.pairs`); None: no pair is scored."""
+    pair_gap_ns: int = DEFAULT_PAIR_GAP_NS
+    """Frames further apart than this are not paired (with ``temporal`` or ``egomotion``)."""
+    egomotion: bool = False
+    """Also score each method's ego-motion residual over the same pairs (ground-truth-free
+    temporal noise; the camera's motion from the stream's /tf)."""
     names: InitVar[FieldNames | None] = None
     """How the front end names the fields in the errors (not stored; neutral words if None)."""
 
@@ -170,6 +186,7 @@ class CoreConfig:
                     "the ground-truth-free criterion set 'roi' needs a mask: not available on "
                     "streams; choose all, texture"
                 )
+        self._check_temporal(names or NEUTRAL_NAMES)
         if self.gt_kind == "pointcloud":
             if self.left_info_topic is None:
                 raise ConfigurationError(
@@ -180,12 +197,45 @@ class CoreConfig:
             if self.extrinsic is not None:
                 rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
 
+    def _check_temporal(self, names: FieldNames) -> None:
+        """A known preset, a positive pair gap, ground truth to pair, a camera to move."""
+        if self.egomotion and self.left_info_topic is None:
+            raise names.error(
+                f"{names.of('egomotion')} moves each estimate by the camera's motion: give "
+                f"{names.of('left_info_topic', 'right_info_topic')} (its principal point and "
+                "frame)",
+                "egomotion",
+            )
+        if self.egomotion and not self.pair_gap_ns > 0:
+            raise names.error(
+                f"{names.of('pair_gap_ns')} must be > 0, got {self.pair_gap_ns / 1e6:g} ms",
+                "pair_gap_ns",
+            )
+        if self.temporal is None:
+            return
+        if self.temporal not in PRESETS:
+            raise names.error(
+                f"{names.of('temporal')} must be one of {', '.join(PRESETS)}, "
+                f"got '{self.temporal}'",
+                "temporal",
+            )
+        if not self.has_gt:
+            raise names.error(
+                f"{names.of('temporal')} scores pairs of ground-truth frames: give the ground "
+                "truth",
+                "temporal",
+            )
+        if not self.pair_gap_ns > 0:
+            raise names.error(
+                f"{names.of('pair_gap_ns')} must be > 0, got {self.pair_gap_ns / 1e6:g} ms",
+                "pair_gap_ns",
+            )
+
     def _check_fields(self, names: FieldNames) -> None:
         """The rules the front ends share, worded with the front end's names (``names``)."""
         if self.gt_kind not in GT_KINDS:
             raise names.error(
-                f"{names.of('gt_kind')} must be one of {', '.join(GT_KINDS)}, "
-                f"got '{self.gt_kind}'",
+                f"{names.of('gt_kind')} must be one of {', '.join(GT_KINDS)}, got '{self.gt_kind}'",
                 "gt_kind",
             )
         for left, right in (
@@ -258,6 +308,9 @@ class CoreConfig:
                 "mu",
                 "tolerance_ns",
                 "lateness_ns",
+                "temporal",
+                "pair_gap_ns",
+                "egomotion",
             )
             if record.get(key) is not None
         }
@@ -329,6 +382,9 @@ class CoreConfig:
             expected[self.right_info_topic] = CAMERA_INFO_TYPE
         if self.tf_topic:
             expected[self.tf_topic] = TF_TYPE
+        if self.egomotion:  # the camera's motion: its mount (static) and the motion over time
+            expected[TF_STATIC_TOPIC] = TF_TYPE
+            expected[TF_TOPIC] = TF_TYPE
         expected[self.gt_topic] = POINT_CLOUD_TYPE if self.pointcloud else IMAGE_TYPE
         expected.update(dict.fromkeys(self.methods.values(), DISPARITY_TYPE))
         if self.left_image_topic and self.right_image_topic:
@@ -367,6 +423,13 @@ class CoreConfig:
                 if self.gt_free
                 else {}
             ),
+            # only when pairs are scored: records of runs without them are unchanged
+            **(
+                {"temporal": self.temporal, "pair_gap_ns": self.pair_gap_ns}
+                if self.temporal is not None or self.egomotion
+                else {}
+            ),
+            **({"egomotion": True} if self.egomotion else {}),
         }
 
     def ground_truth_free(self) -> GroundTruthFree | None:
@@ -374,6 +437,13 @@ class CoreConfig:
         if not self.gt_free:
             return None
         return GroundTruthFree(self.gt_free_criteria, self.missing)
+
+    def pair_stage(self) -> PairStage | None:
+        """The stage scoring consecutive frames' pairs (None without ``temporal``)."""
+        if self.temporal is None and not self.egomotion:
+            return None
+        motion = EgoMotionOptions() if self.egomotion else None
+        return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns, motion)
 
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones).

@@ -12,36 +12,26 @@ import contextlib
 import threading
 from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from dispeval_ros.core import Camera, Partition, Reference, Scores
-from dispeval_ros.core.gtfree import (
-    ImagePair,
-    joined,
-)
-from dispeval_ros.core.projection import (
-    CloudFilter,
-    CloudProjection,
-    project_cloud,
-    rectified_projection,
-)
+from dispeval_ros.core import Camera, Reference, Scores
+from dispeval_ros.core.gtfree import ImagePair, joined
+from dispeval_ros.core.projection import CloudFilter, CloudProjection
 from dispeval_ros.core.transforms import TransformTree, rigid_matrix
-from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError, InputError
+from dispeval_ros.errors import CalibrationError, ConfigurationError, DispevalError
 from dispeval_ros.io.grey import stereo_grey
 from dispeval_ros.io.messages import (
     DisparityFrame,
     camera_from_infos,
-    cloud_from_msg,
     disparity_from_msg,
     gt_disparity,
     image_from_msg,
-    rectified_camera_from_info,
     stamp_ns,
     static_transforms_from_msg,
 )
+from dispeval_ros.stream.clouds import cloud_disparity
 from dispeval_ros.stream.config import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
@@ -56,6 +46,9 @@ from dispeval_ros.stream.config import (
     CoreConfig,
 )
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
+from dispeval_ros.stream.motion import MotionSource
+from dispeval_ros.stream.pairs import PairInput, PairOutcome, camera_view
+from dispeval_ros.stream.results import FrameResult, MethodCounts
 
 __all__ = [  # the configuration's names stay importable from here (stream.config defines them)
     "CAMERA_INFO_TYPE",
@@ -76,39 +69,6 @@ __all__ = [  # the configuration's names stay importable from here (stream.confi
 ]
 
 
-@dataclass
-class FrameResult:
-    """Scores of every method that delivered an estimate for one ground-truth frame."""
-
-    stamp: int
-    scores: dict[str, Scores]
-    estimate_stamps: dict[str, int]
-    problems: list[tuple[str | None, str]] = field(default_factory=list)
-    errors: dict[str, np.ndarray] = field(default_factory=dict)
-    """With ``error_images``: per method, the absolute error (float32, NaN where not evaluated)."""
-    partition: Partition | None = None
-    """The criteria of this frame's ground truth (to render error images with criteria)."""
-    arrivals: dict[str, int] = field(default_factory=dict)
-    """Per method joined with this frame (scored or not): when its estimate arrived (ns, the
-    join's arrival clock: a bag's log time, the receipt time live)."""
-    sent: dict[str, int] = field(default_factory=dict)
-    """Per method in :attr:`arrivals`: its estimate's header stamp (ns)."""
-
-    def delays(self) -> dict[str, int]:
-        """Per method: arrival minus its estimate's header stamp (ns)."""
-        return {method: arrival - self.sent[method] for method, arrival in self.arrivals.items()}
-
-
-@dataclass
-class MethodCounts:
-    """Join counts plus frames that were joined but could not be scored."""
-
-    matched: int = 0
-    unmatched: int = 0
-    dropped: int = 0
-    failed: int = 0
-
-
 class EvaluationCore:
     """Join, score and report; call :meth:`push` for every message, :meth:`flush` at the end."""
 
@@ -121,8 +81,12 @@ class EvaluationCore:
         executor: Executor | None = None,
         repeat_memory_ns: int | None = REPEAT_MEMORY_NS,
         seen_stamps: Collection[int] = (),
+        wait_for_motion: bool = False,
     ) -> None:
-        """``repeat_memory_ns`` and ``seen_stamps``: see :class:`StampJoiner`."""
+        """``repeat_memory_ns``, ``seen_stamps``: see :class:`StampJoiner`.
+
+        ``wait_for_motion``: ego-motion pairs wait for /tf (see :attr:`PairStage.ready`).
+        """
         self.config = config
         self.error_images = error_images
         self.executor = executor
@@ -130,6 +94,10 @@ class EvaluationCore:
         GIL); None scores them one after the other. The results are the same."""
         self.evaluator = config.evaluator()
         self.gt_free = config.ground_truth_free()
+        self.pairs = config.pair_stage()
+        """The pair stage (``temporal``): fed in the join's order by :meth:`pair`."""
+        self.motion: MotionSource | None = None
+        """With ``egomotion``: the stream's /tf history the residual's motion comes from."""
         auxiliary = config.auxiliary()
         self.joiner: StampJoiner[Any, Any] = StampJoiner(
             [*config.methods, *auxiliary],
@@ -150,6 +118,11 @@ class EvaluationCore:
         self._cloud_filter = CloudFilter.parse(config.cloud_filter)
         self.failed = dict.fromkeys(config.methods, 0)
         self._failed_lock = threading.Lock()
+        if config.egomotion and self.pairs is not None:
+            self.motion = MotionSource(self.transforms, TF_STATIC_TOPIC)
+            self.pairs.motion = self.motion.history.camera_motion
+            if wait_for_motion:  # a bag: /tf logged after a frame is read before its pair
+                self.pairs.ready = self.motion.history.ready
         self._negative_t: set[str] = set()
         """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
@@ -169,6 +142,9 @@ class EvaluationCore:
         if topic in (self.config.left_info_topic, self.config.right_info_topic):
             self._infos[topic] = msg
             self._camera = None  # recomputed on the next frame from the latest infos
+            return []
+        if self.motion is not None and self.motion.takes(topic):  # /tf (and /tf_static)
+            self.motion.push(topic, msg)
             return []
         if topic == self.config.tf_topic:
             # A malformed message is skipped: the frames it would connect are then reported
@@ -237,7 +213,8 @@ class EvaluationCore:
                     self._count_failed(method)
                 return result
             camera = calibration if isinstance(calibration, Camera) else None
-            return self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            return self._with_pair_input(result, None, camera, pair, infos)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -287,7 +264,43 @@ class EvaluationCore:
             result.problems.extend(part.problems)
             result.errors.update(part.errors)
             result.partition = part.partition or result.partition
+            result.prepared.update(part.prepared)
+        return self._with_pair_input(result, reference, reference.camera, pair, infos)
+
+    def _with_pair_input(
+        self,
+        result: FrameResult,
+        reference: Reference | None,
+        camera: Camera | None,
+        pair: ImagePair | None,
+        infos: Mapping[str, Any],
+    ) -> FrameResult:
+        """``result`` with what the pair stage keeps of its frame (nothing without a stage)."""
+        if self.pairs is None:
+            return result
+        view: tuple[Any, str] = (None, "")
+        if self.pairs.egomotion is not None:  # the principal point and frame of the camera
+            view = camera_view(camera, infos, self.config.left_info_topic)
+        partition = None if pair is None else pair.partition
+        result.pair_input = PairInput(result.stamp, reference, result.prepared, partition, *view)
+        result.prepared = {}
         return result
+
+    def pair(self, result: FrameResult) -> FrameResult:
+        """The pairs ending at a scored frame: call it on every frame, in the join's order."""
+        if self.pairs is None:
+            return result
+        outcome = self.pairs.add(result.pair_input or PairInput(result.stamp, None, {}))
+        result.pair_input = None
+        result.pairs.update(outcome.scores)
+        result.motion_pairs.extend(outcome.motion)
+        result.pair_previous = outcome.previous
+        result.problems.extend(outcome.problems)
+        return result
+
+    def finish_pairs(self) -> PairOutcome | None:
+        """End of stream: the pairs still waiting for the motion source (None: no stage)."""
+        return None if self.pairs is None else self.pairs.finish()
 
     def _score_method(
         self,
@@ -312,6 +325,9 @@ class EvaluationCore:
                 self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
+            if self.pairs is not None:
+                image = None if pair is None else pair.left
+                part.prepared[method] = self.pairs.prepare(frame.disparity, **terms, image=image)
             if self.error_images:
                 part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition
@@ -479,6 +495,11 @@ class EvaluationCore:
                     method, frame, frame_set, pair, camera, result
                 )
                 result.estimate_stamps[method] = stamp
+                if self.pairs is not None:
+                    terms = frame.scoring(camera)
+                    result.prepared[method] = self.pairs.prepare(
+                        frame.disparity, **terms, image=pair.left
+                    )
             except DispevalError as error:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
@@ -499,43 +520,15 @@ class EvaluationCore:
         shape: tuple[int, ...],
         infos: Mapping[str, Any] | None = None,
     ) -> CloudProjection:
-        """Project a PointCloud2 into the left camera (the sparse GT of one frame).
+        """Project a PointCloud2 into the left camera (:func:`~.clouds.cloud_disparity`).
 
-        ``infos``: the CameraInfo messages by topic (default: the latest pushed). Every problem
-        is one line naming the topic: no x/y/z, no camera, no chain of static transforms, a
-        CameraInfo of another size than the disparity, or no point in view.
+        ``infos``: the CameraInfo messages by topic (default: the latest pushed).
         """
-        topic = self.config.gt_topic
-        cloud = cloud_from_msg(msg, topic)
-        left = self.config.left_info_topic
-        infos = self._infos if infos is None else infos
-        if camera is None or left is None or left not in infos:
-            raise CalibrationError(
-                f"no camera yet for the cloud on {topic}: waiting for the CameraInfo topics"
-            )
-        view = rectified_camera_from_info(infos[left], left)
-        size = (view.height, view.width) if view.height > 0 and view.width > 0 else shape[:2]
-        if tuple(size) != tuple(shape[:2]):
-            raise InputError(
-                f"CameraInfo on {left} is {view.width}×{view.height} but the disparity is "
-                f"{shape[1]}×{shape[0]}: the cloud cannot be projected into that image"
-            )
-        extrinsic = self.extrinsic(view.frame_id, cloud.frame_id)
-        matrix = rectified_projection(extrinsic, view.rectification, view.projection)
-        projected = project_cloud(
-            cloud.points, matrix, (int(size[0]), int(size[1])), camera, self._cloud_filter
-        )
-        if projected.points and not projected.in_front:
-            raise CalibrationError(
-                f"the cloud on {topic}: all {projected.points} points are behind the camera "
-                f"'{view.frame_id}' (Z ≤ 0) with this extrinsic; is it inverted (camera → LiDAR)?"
-            )
-        if not projected.kept:
-            raise InputError(
-                f"the cloud on {topic}: none of its {projected.points} points lands in the "
-                f"{size[1]}×{size[0]} image ({projected.in_front} in front of the camera)"
-            )
-        return projected
+        config, infos = self.config, self._infos if infos is None else infos
+        return cloud_disparity(
+            msg, config.gt_topic, config.left_info_topic, camera, shape, infos,
+            self.extrinsic, self._cloud_filter,
+        )  # fmt: skip
 
     def _count_failed(self, method: str) -> None:
         with self._failed_lock:  # score() may run in several threads

@@ -33,7 +33,9 @@ class LiveStats:
 class LiveEvaluator:
     """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams.
 
-    With ``workers`` > 1, results may be handed over out of stamp order.
+    With ``workers`` > 1, results may be handed over out of stamp order; with a pair stage
+    (``temporal``, ``egomotion``) they are handed over in the join's order, each after its
+    pairs are scored.
     """
 
     def __init__(
@@ -63,6 +65,10 @@ class LiveEvaluator:
         self._keep_latencies = keep_latencies
         self._clock = clock
         self._lock = threading.Lock()
+        self._pair_lock = threading.Lock()
+        self._taken = 0  # frames taken from the queue, and handed over in that order (pairs)
+        self._handed = 0
+        self._finished: dict[int, FrameResult | None] = {}
         self._ready = threading.Condition(self._lock)
         self._queue: deque[tuple[FrameSet[Any, Any], float]] = deque()
         self._dropped: dict[str, int] = dict.fromkeys(config.methods, 0)
@@ -117,16 +123,36 @@ class LiveEvaluator:
                     return
                 frame_set, arrived = self._queue.popleft()
                 self._busy += 1
+                turn, self._taken = self._taken, self._taken + 1  # the join's order
+            result: FrameResult | None = None
             try:
                 result = self.core.score(frame_set)
-                self.on_result(result)
+                if self.core.pairs is None:
+                    self.on_result(result)
             finally:
+                if self.core.pairs is not None:
+                    self._in_order(turn, result)
                 with self._lock:
                     self._busy -= 1
                     self.stats.results += 1
                     if len(self.stats.latencies) < self._keep_latencies:
                         self.stats.latencies.append(self._clock() - arrived)
                     self._ready.notify_all()
+
+    def _in_order(self, turn: int, result: FrameResult | None) -> None:
+        """With pairs: each result through the pair stage and out, in the order taken.
+
+        Frames scored side by side finish in any order; the pair stage needs them in the
+        join's, so a result waits here for those taken before it (None: it raised).
+        """
+        with self._pair_lock:
+            self._finished[turn] = result
+            while self._handed in self._finished:
+                ready = self._finished.pop(self._handed)
+                self._handed += 1
+                if ready is not None:
+                    self.core.pair(ready)
+                    self.on_result(ready)
 
     def wait_idle(self, timeout: float | None = None) -> bool:
         """Block until every queued frame is scored (for tests and orderly shutdown)."""

@@ -16,8 +16,18 @@ from pathlib import Path
 import numpy as np
 
 from dispeval_ros.core import Scores
+from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.objectives import is_pair_measure
 from dispeval_ros.core.provenance import provenance_record
-from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
@@ -136,6 +146,8 @@ class SummarizerCore:
         self.sequence = self._name(self._sequence_index)
         self._pending: list[FrameScores] = []
         self._timing: list[FrameTiming] = []
+        self._pairs: list[FramePair] = []
+        self._motion: list[FrameMotion] = []
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
@@ -151,13 +163,26 @@ class SummarizerCore:
         stamp: int,
         scores: Mapping[str, Scores],
         arrivals: Mapping[str, tuple[int, int]] | None = None,
+        pairs: Mapping[str, tuple[int, PairScores]] | None = None,
+        motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
         ``arrivals``: per method, (estimate stamp, arrival) of its estimate (the latency), also
         of an estimate that could not be scored: it was delivered all the same, and ``dispeval
-        bag`` keeps its arrival too. Without scores only the arrivals are recorded.
+        bag`` keeps its arrival too. Without scores only the arrivals are recorded. ``pairs``:
+        per method, the pair ending at this frame (the earlier frame's stamp, its scores), stored
+        with the unit as ``dispeval bag --temporal`` stores it; ``motion``: likewise its
+        ego-motion residual.
         """
+        self._motion.extend(
+            FrameMotion(self.sequence, int(stamp), method, previous, sums)
+            for method, (previous, sums) in (motion or {}).items()
+        )
+        self._pairs.extend(
+            FramePair(self.sequence, int(stamp), method, previous, pair)
+            for method, (previous, pair) in (pairs or {}).items()
+        )
         self._timing.extend(
             FrameTiming(self.sequence, int(stamp), method, sent, arrival)
             for method, (sent, arrival) in (arrivals or {}).items()
@@ -180,13 +205,19 @@ class SummarizerCore:
             previous = counts.get(frame.method, MatchCounts(0, 0, 0, 0))
             counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
         unit = f"{self._units:06d}"
-        self.store.add_unit(self.sequence, unit, self._pending, (), counts, self._timing)
+        self.store.add_unit(
+            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs, self._motion
+        )
         self._units += 1
         self._pending = []
         self._timing = []
+        self._pairs = []
+        self._motion = []
         # Live summaries come from the running totals (O(1) per frame); per-frame objectives
         # and timing ones need every frame and so read the database. finish() always does.
-        timed = any(is_timing_measure(m) for m in self.config.objective_measures)
+        timed = any(
+            is_timing_measure(m) or is_pair_measure(m) for m in self.config.objective_measures
+        )
         by_sequence = self.config.granularity == "sequence" and not timed
         source = self.totals if by_sequence else self.store
         self.summary = summarize(source, self.config.objective_measures, self.config.granularity)

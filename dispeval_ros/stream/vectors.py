@@ -29,6 +29,8 @@ from dispeval_ros.core.measures import (
 from dispeval_ros.errors import ConfigurationError, InputError
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.egomotion import TemporalSums
+    from dispeval_ros.core.temporal import PairScores
     from dispeval_ros.stream.core import FrameResult
 
 OK, WARN, ERROR = 0, 1, 2
@@ -45,6 +47,20 @@ DELAY_KEY = "_delay_ms"
 """Arrival minus the estimate's header stamp, in ms (for a reader of the diagnostics)."""
 DELAY_ALARM = "latency/delay_ms"
 """The alarm key of an estimate's delay (ms): ``latency/delay_ms=50`` beside the score ones."""
+PAIR_PREFIX = "temporal/"
+"""The pair measures of the pair ending at the frame: ``temporal/CRITERION/MEASURE`` (with
+``temporal``), never read as the frame's own criteria."""
+PAIR_SUMS_KEY = "pair_sums"
+"""``temporal/CRITERION/pair_sums``: the pair's raw sums, so a summarizer pools them exactly."""
+PAIR_PREVIOUS_KEY = "_pair_previous"
+"""The stamp (ns) of the pair's earlier frame."""
+PAIR_META = ("_pair_thresholds", "_pair_policy", "_pair_preset")
+MOTION_PREFIX = "egomotion/"
+"""The ego-motion residual of that pair: ``egomotion/gtfree:CRITERION/VALUE`` (ground-truth
+free, so on ``gtfree:`` criteria), its sums ``.../motion_sums``, ``_motion_offset`` (px) and
+``_motion_thresholds``; the earlier frame is :data:`PAIR_PREVIOUS_KEY`'s."""
+MOTION_SUMS_KEY = "motion_sums"
+MOTION_META = ("_motion_thresholds", "_motion_offset")
 META_KEYS = (
     "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
     DELAY_KEY,
@@ -159,11 +175,15 @@ def scores_status(
     alarms: AlarmThresholds | None = None,
     estimate_stamp: int | None = None,
     arrival: int | None = None,
+    pair: tuple[int, PairScores] | None = None,
+    motion: tuple[int, TemporalSums] | None = None,
 ) -> StatusRecord:
     """The status of one method on one frame: every ``criterion/measure`` plus raw sums.
 
     With ``arrival`` (and ``estimate_stamp``): when the estimate arrived and its delay, so a
-    summarizer stores the latency as ``dispeval bag`` does (:func:`arrival_of`).
+    summarizer stores the latency as ``dispeval bag`` does (:func:`arrival_of`). With ``pair``
+    (the earlier frame's stamp, the pair's scores): the pair measures (:data:`PAIR_PREFIX`);
+    with ``motion`` (the same stamp, the residual's sums): :data:`MOTION_PREFIX`'s keys.
     """
     values: list[tuple[str, str]] = []
     level = OK
@@ -185,6 +205,10 @@ def scores_status(
     values.append(("_relative", "1" if scores.relative else "0"))
     values.append(("_thresholds", " ".join(format_number(t) for t in scores.thresholds)))
     values.append(("_overlapping", " ".join(scores.overlapping)))
+    if pair is not None:
+        values.extend(pair_values(*pair))
+    if motion is not None:
+        values.extend(motion_values(*motion, with_previous=pair is None))
     delay = _timing_values(values, estimate_stamp, arrival)
     if delay is not None:
         found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
@@ -192,6 +216,127 @@ def scores_status(
             level, worst = found, f"delay {delay:.4g} ms"
     message = {OK: "ok", WARN: f"warning: {worst}", ERROR: f"error: {worst}"}[level]
     return StatusRecord(method, topic, level, message, tuple(values))
+
+
+def pair_values(previous: int, pair: PairScores) -> list[tuple[str, str]]:
+    """The keys of a pair's measures and sums (read back by :func:`pair_from_status`)."""
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(pair.criteria, pair.sums, strict=True):
+        for measure, value in pair[criterion].items():
+            values.append((f"{PAIR_PREFIX}{criterion}/{measure}", format_number(value)))
+        text = " ".join(format_number(v) for v in row)
+        values.append((f"{PAIR_PREFIX}{criterion}/{PAIR_SUMS_KEY}", text))
+    thresholds = " ".join(format_number(t) for t in pair.thresholds)
+    meta = (thresholds, pair.policy, pair.preset.name)
+    return [*values, (PAIR_PREVIOUS_KEY, str(int(previous))), *zip(PAIR_META, meta, strict=True)]
+
+
+def motion_values(
+    previous: int, sums: TemporalSums, with_previous: bool = True
+) -> list[tuple[str, str]]:
+    """The keys of a pair's ego-motion residual (read back by :func:`motion_from_status`)."""
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
+        name = f"{MOTION_PREFIX}{GT_FREE_PREFIX}{criterion}/"
+        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
+        values.append((name + MOTION_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    values.append((MOTION_META[0], " ".join(format_number(t) for t in sums.thresholds)))
+    values.append((MOTION_META[1], format_number(sums.offsets[0])))
+    return values + ([(PAIR_PREVIOUS_KEY, str(int(previous)))] if with_previous else [])
+
+
+def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, TemporalSums] | None:
+    """``(earlier frame's stamp, ego-motion sums)`` of a status with them, else None."""
+    from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
+
+    table = dict(values)
+    if MOTION_META[1] not in table:
+        return None
+    suffix, start = "/" + MOTION_SUMS_KEY, len(MOTION_PREFIX) + len(GT_FREE_PREFIX)
+    keys = [k for k, _ in values if k.startswith(MOTION_PREFIX) and k.endswith(suffix)]
+    criteria = [k[start : -len(suffix)] for k in keys]
+    try:
+        thresholds = tuple(float(t) for t in table[MOTION_META[0]].split())
+        sums = np.array([[float(v) for v in table[k].split()] for k in keys])
+        offset, previous = float(table[MOTION_META[1]]), int(table[PAIR_PREVIOUS_KEY])
+        if sums.shape != (len(criteria), len(BASE_COLUMNS) + len(thresholds)):
+            raise ValueError(sums.shape)
+    except (KeyError, ValueError):
+        raise InputError("the diagnostic status has malformed ego-motion keys") from None
+    return previous, TemporalSums("egomotion", tuple(criteria), thresholds, sums, (offset,))
+
+
+def read_pairs(
+    record: StatusRecord,
+    pairs: dict[str, tuple[int, PairScores]],
+    motion: dict[str, tuple[int, TemporalSums]],
+) -> None:
+    """Add a method status's pair and ego-motion residual, where it has them, by its name.
+
+    What every summarizer reads of a status beside its scores (:func:`scores_from_status`).
+    """
+    pair = pair_from_status(record.values)
+    if pair is not None:
+        pairs[record.name] = pair
+    moved = motion_from_status(record.values)
+    if moved is not None:
+        motion[record.name] = moved
+
+
+def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores] | None:
+    """``(earlier frame's stamp, pair scores)`` of a status with a pair, else None."""
+    from dispeval_ros.core.kernels.temporal import PAIR_COUNT
+    from dispeval_ros.core.temporal import PRESETS, PairScores
+
+    table = dict(values)
+    if PAIR_PREVIOUS_KEY not in table:
+        return None
+    suffix = "/" + PAIR_SUMS_KEY
+    criteria = [k[len(PAIR_PREFIX) : -len(suffix)] for k, _ in values if k.endswith(suffix)]
+    try:
+        thresholds, policy, preset = (table[key] for key in PAIR_META)
+        sums = np.array(
+            [[float(v) for v in table[f"{PAIR_PREFIX}{c}{suffix}"].split()] for c in criteria]
+        )
+        previous = int(table[PAIR_PREVIOUS_KEY])
+        if preset not in PRESETS or sums.shape != (len(criteria), PAIR_COUNT):
+            raise ValueError(preset)
+    except (KeyError, ValueError):
+        raise InputError("the diagnostic status has malformed temporal pair keys") from None
+    scores = PairScores(
+        criteria=tuple(criteria),
+        measures=PRESETS[preset].measures,
+        sums=sums,
+        thresholds=np.array([float(t) for t in thresholds.split()]),
+        policy=policy,
+        preset=PRESETS[preset],
+    )
+    return previous, scores
+
+
+def result_statuses(
+    result: FrameResult, topics: Mapping[str, str], alarms: AlarmThresholds | None = None
+) -> list[StatusRecord]:
+    """The status of each method scored on a frame, with its latency and its pair, if any."""
+    previous = result.pair_previous
+    motion = {
+        p.method: (p.previous, p.sums) for p in result.motion_pairs if p.stamp == result.stamp
+    }
+    return [
+        scores_status(
+            method,
+            topics[method],
+            scores,
+            alarms,
+            result.estimate_stamps.get(method),
+            result.arrivals.get(method),
+            None
+            if previous is None or method not in result.pairs
+            else (previous, result.pairs[method]),
+            motion.get(method),
+        )
+        for method, scores in result.scores.items()
+    ]
 
 
 def _timing_values(

@@ -12,14 +12,19 @@ from typing import TypeVar
 
 import numpy as np
 
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.measures import Scores, quantile_level
 from dispeval_ros.core.records import FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store.lock import _FolderLock
+from dispeval_ros.io.store.pairs import read_motion, read_pairs
 from dispeval_ros.io.store.schema import (
     _BLOB,
     _FRAME_ORDER,
     _ORDERED_FRAMES,
+    MOTION_TABLE,
+    PAIRS_TABLE,
     RESULTS_FILE,
     TIMING_TABLE,
     _check_config,
@@ -345,6 +350,29 @@ class ResultsReader:
         for stamp, method, sent, arrival in rows:
             found.setdefault(method, []).append(FrameTiming(sequence, stamp, method, sent, arrival))
         return found
+
+    def records_pairs(self) -> bool:
+        """Whether temporal pair sums can be stored (a database older than them: no)."""
+        return has_table(self._db, PAIRS_TABLE)
+
+    def pairs(self, sequence: str) -> dict[str, PairScores] | None:
+        """Per method (the methods' order), the sequence's pairs pooled by their sums.
+
+        None: not recorded (a database written before pairs were); empty: no pair stored.
+        """
+        if not self.records_pairs():
+            return None
+        return read_pairs(self._db, str(self.path), sequence, self._names("methods"))
+
+    def records_motion(self) -> bool:
+        """Whether ego-motion residuals can be stored (a database older than them: no)."""
+        return has_table(self._db, MOTION_TABLE)
+
+    def motion_pairs(self, sequence: str) -> dict[str, tuple[int, TemporalSums]] | None:
+        """Per method: its ego-motion pairs in ``sequence``, their sums pooled (None: not kept)."""
+        if not self.records_motion():
+            return None
+        return read_motion(self._db, str(self.path), sequence, self._names("methods"))
 
     def problems(self, sequence: str | None = None) -> list[Problem]:
         """Recorded problems of one sequence (or all), in the order they were written."""

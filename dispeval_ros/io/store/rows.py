@@ -8,8 +8,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.store.pairs import motion_rows, pair_rows
 from dispeval_ros.io.store.schema import _BLOB, _Layout
 
 
@@ -26,6 +34,8 @@ class PreparedUnit:
     problem_rows: list[tuple[object, ...]]
     count_rows: list[tuple[object, ...]]
     timing_rows: list[tuple[object, ...]] = field(default_factory=list)
+    pair_rows: list[tuple[object, ...]] = field(default_factory=list)
+    motion_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -40,6 +50,8 @@ def prepare_unit(
     problems: Sequence[Problem] = (),
     counts: Mapping[str, MatchCounts] | None = None,
     timing: Sequence[FrameTiming] = (),
+    pairs: Sequence[FramePair] = (),
+    motion: Sequence[FrameMotion] = (),
 ) -> PreparedUnit:
     """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
     layout = _unit_layout(unit, frames)
@@ -70,7 +82,17 @@ def prepare_unit(
             )
         )
     return PreparedUnit(
-        sequence, unit, layout, frame_rows, methods, criteria, problem_rows, count_rows, timing_rows
+        sequence,
+        unit,
+        layout,
+        frame_rows,
+        methods,
+        criteria,
+        problem_rows,
+        count_rows,
+        timing_rows,
+        pair_rows(sequence, unit, pairs),
+        motion_rows(sequence, unit, motion),
     )
 
 

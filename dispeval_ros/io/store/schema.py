@@ -59,6 +59,33 @@ resumed onto it records none either, so its latency is never that of a part of i
 _INSERT_TIMING = (
     "INSERT INTO timing (sequence, stamp, method, estimate_stamp, arrival) VALUES (?, ?, ?, ?, ?)"
 )
+_SELECT_TIMING = "SELECT sequence, stamp, method, estimate_stamp, arrival FROM timing"
+
+PAIRS_TABLE = "pairs"
+_PAIR_COLUMNS = "sequence, stamp, method, previous, criteria, thresholds, policy, preset, sums"
+_PAIRS_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS pairs (sequence TEXT NOT NULL, stamp INTEGER NOT NULL, "
+    "method TEXT NOT NULL, previous INTEGER NOT NULL, criteria TEXT NOT NULL, "
+    "thresholds BLOB NOT NULL, policy TEXT NOT NULL, preset TEXT NOT NULL, "
+    "sums BLOB NOT NULL, PRIMARY KEY (sequence, stamp, method))"
+)
+"""Each method's temporal pair sums (:mod:`~dispeval_ros.io.store.pairs`); ``stamp`` the later
+frame's, ``previous`` the earlier's. Made with a new database, as ``timing``; one written before
+it existed reads as "temporal: not recorded"."""
+_INSERT_PAIR = f"INSERT INTO pairs ({_PAIR_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_PAIRS = f"SELECT {_PAIR_COLUMNS} FROM pairs"
+MOTION_TABLE = "motion_pairs"
+_MOTION_COLUMNS = "sequence, stamp, method, previous, criteria, thresholds, offset, sums"
+_MOTION_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS motion_pairs (sequence TEXT NOT NULL, stamp INTEGER NOT NULL, "
+    "method TEXT NOT NULL, previous INTEGER NOT NULL, criteria TEXT NOT NULL, "
+    "thresholds BLOB NOT NULL, offset REAL NOT NULL, sums BLOB NOT NULL, "
+    "PRIMARY KEY (sequence, stamp, method))"
+)
+"""Each method's ego-motion residual sums of a pair (``egomotion``), with the offset removed;
+made with a new database as ``pairs``."""
+_INSERT_MOTION = f"INSERT INTO motion_pairs ({_MOTION_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_MOTION = f"SELECT {_MOTION_COLUMNS} FROM motion_pairs"
 
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
@@ -298,7 +325,7 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        for statement in (*_SCHEMA, _TIMING_SCHEMA):
+        for statement in (*_SCHEMA, _TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA):
             connection.execute(statement)
         connection.executemany(
             "INSERT INTO run (key, ordinal, value) VALUES (?, ?, ?)",

@@ -9,7 +9,14 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TypeVar
 
-from dispeval_ros.core.records import FrameScores, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameMotion,
+    FramePair,
+    FrameScores,
+    FrameTiming,
+    MatchCounts,
+    Problem,
+)
 from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.reader import ResultsReader
@@ -17,9 +24,16 @@ from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
+    _INSERT_MOTION,
+    _INSERT_PAIR,
     _INSERT_TIMING,
     _PROVENANCE_TABLE,
+    _SELECT_MOTION,
+    _SELECT_PAIRS,
+    _SELECT_TIMING,
     FAILED_MARK,
+    MOTION_TABLE,
+    PAIRS_TABLE,
     RESULTS_FILE,
     TIMING_TABLE,
     _check_config,
@@ -33,6 +47,7 @@ from dispeval_ros.io.store.schema import (
     _quote,
     _state,
     failure_record,
+    has_table,
 )
 
 _Writer = TypeVar("_Writer", bound="ResultsWriter")
@@ -121,6 +136,8 @@ class ResultsWriter(ResultsReader):
         problems: Sequence[Problem] = (),
         counts: Mapping[str, MatchCounts] | None = None,
         timing: Sequence[FrameTiming] = (),
+        pairs: Sequence[FramePair] = (),
+        motion: Sequence[FrameMotion] = (),
     ) -> None:
         """Write one unit of work in one transaction and mark it done; a done unit is a no-op.
 
@@ -130,7 +147,9 @@ class ResultsWriter(ResultsReader):
         self._require_writable()
         if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
-        self.add_prepared(prepare_unit(sequence, unit, frames, problems, counts, timing))
+        self.add_prepared(
+            prepare_unit(sequence, unit, frames, problems, counts, timing, pairs, motion)
+        )
 
     def _written(self, sequence: str, unit: str, failure: bool) -> bool:
         """Whether writing ``unit`` is a no-op: it is done (a failure record: its unit is)."""
@@ -182,13 +201,21 @@ class ResultsWriter(ResultsReader):
                 problem_rows,
             )
             self._db.executemany(_ADD_COUNTS, count_rows)
-            if prepared.timing_rows and self.records_timing():  # an older database: none
+            timing, pairs = prepared.timing_rows, prepared.pair_rows
+            later_tables = (  # tables added after the first schema: an older database has none
+                (self.records_timing(), _INSERT_TIMING, timing, "the arrival of an estimate"),
+                (self.records_pairs(), _INSERT_PAIR, pairs, "a pair"),
+                (self.records_motion(), _INSERT_MOTION, prepared.motion_rows, "a motion pair"),
+            )
+            for recorded, statement, rows, what in later_tables:
+                if not (rows and recorded):
+                    continue
                 try:
-                    self._db.executemany(_INSERT_TIMING, prepared.timing_rows)
+                    self._db.executemany(statement, rows)
                 except sqlite3.IntegrityError:
                     raise ValueError(
-                        f"unit '{unit}' of {sequence} holds the arrival of an estimate "
-                        "(stamp, method) that another unit already stored"
+                        f"unit '{unit}' of {sequence} holds {what} (stamp, method) that another "
+                        "unit already stored"
                     ) from None
             self._db.execute(
                 "INSERT INTO units (sequence, unit, ordinal) "
@@ -273,28 +300,30 @@ class ResultsWriter(ResultsReader):
                     "FROM match_counts ORDER BY sequence, ordinal"
                 ),
             )
-            self._add_timing(other)
+            for table, insert, select, what in (
+                (TIMING_TABLE, _INSERT_TIMING, _SELECT_TIMING, "arrival times"),
+                (PAIRS_TABLE, _INSERT_PAIR, _SELECT_PAIRS, "pairs"),
+                (MOTION_TABLE, _INSERT_MOTION, _SELECT_MOTION, "ego-motion pairs"),
+            ):
+                self._add_later_table(other, table, insert, select, what)
         self._layout = self._read_layout()
         return len(units)
 
-    def _add_timing(self, other: ResultsReader) -> None:
-        """Copy ``other``'s arrival times; results without any leave none (not a part of them)."""
-        if not self.records_timing():
+    def _add_later_table(
+        self, other: ResultsReader, table: str, insert: str, select: str, what: str
+    ) -> None:
+        """Copy ``other``'s rows of a table added later; results without it leave none."""
+        if not has_table(self._db, table):
             return
-        if not other.records_timing():
-            self._db.execute(f"DROP TABLE {TIMING_TABLE}")
+        if not has_table(other._db, table):
+            self._db.execute(f"DROP TABLE {table}")
             return
         try:
-            self._db.executemany(
-                _INSERT_TIMING,
-                other._db.execute(
-                    "SELECT sequence, stamp, method, estimate_stamp, arrival FROM timing"
-                ),
-            )
+            self._db.executemany(insert, other._db.execute(select))
         except sqlite3.IntegrityError:
             raise ConfigurationError(
-                f"{other.path} holds arrival times (sequence, stamp, method) that {self.path} "
-                "holds already"
+                f"{other.path} holds {what} (sequence, stamp, method) that {self.path} holds "
+                "already"
             ) from None
 
     def set_sequence(self, sequence: str, source: str, info: Mapping[str, object]) -> None:

@@ -1,0 +1,132 @@
+"""The ``pairs`` table's rows: each method's temporal pair sums of two consecutive frames.
+
+The table is made with every new database (:mod:`~dispeval_ros.io.store.schema`). A row holds
+one pair's accumulator sums (criteria × pair fields, float64 little-endian) with what they need
+to be read back as :class:`~dispeval_ros.core.temporal.PairScores`: criteria, thresholds,
+policy and preset. A sequence's pair measures are its rows' sums added
+(:meth:`PairScores.combine`), exact.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
+from dispeval_ros.core.kernels.temporal import PAIR_COUNT
+from dispeval_ros.core.records import FrameMotion, FramePair
+from dispeval_ros.core.temporal import PRESETS, PairScores
+from dispeval_ros.errors import InputError
+from dispeval_ros.io.store.schema import _BLOB
+
+
+def pair_rows(sequence: str, unit: str, pairs: Iterable[FramePair]) -> list[tuple[object, ...]]:
+    """The ``pairs`` rows of a unit's pairs (each of ``sequence``)."""
+    rows: list[tuple[object, ...]] = []
+    for pair in pairs:
+        if pair.sequence != sequence:
+            raise ValueError(f"unit '{unit}' of {sequence} holds a pair of {pair.sequence}")
+        scores = pair.scores
+        rows.append(
+            (
+                sequence,
+                int(pair.stamp),
+                pair.method,
+                int(pair.previous),
+                json.dumps(list(scores.criteria)),
+                np.ascontiguousarray(scores.thresholds, dtype=_BLOB).tobytes(),
+                scores.policy,
+                scores.preset.name,
+                np.ascontiguousarray(scores.sums, dtype=_BLOB).tobytes(),
+            )
+        )
+    return rows
+
+
+def read_pairs(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, PairScores]:
+    """Per method (in ``methods``' order, then first seen), the sequence's pairs pooled.
+
+    ``where``: the database's path, for the one line a damaged row gives.
+    """
+    rows = connection.execute(
+        "SELECT method, criteria, thresholds, policy, preset, sums FROM pairs "
+        "WHERE sequence = ? ORDER BY stamp",
+        (sequence,),
+    )
+    found: dict[str, list[PairScores]] = {}
+    for method, criteria, thresholds, policy, preset, blob in rows:
+        names = tuple(json.loads(criteria))
+        sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
+        if preset not in PRESETS or sums.size != len(names) * PAIR_COUNT:
+            raise InputError(f"{where}: a stored pair row of {method} is damaged")
+        found.setdefault(method, []).append(
+            PairScores(
+                criteria=names,
+                measures=PRESETS[preset].measures,
+                sums=sums.reshape(len(names), PAIR_COUNT),
+                thresholds=np.frombuffer(thresholds, dtype=_BLOB).astype(np.float64),
+                policy=policy,
+                preset=PRESETS[preset],
+            )
+        )
+    order = [m for m in methods if m in found] + [m for m in found if m not in methods]
+    return {method: PairScores.combine(found[method]) for method in order}
+
+
+def motion_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[tuple[object, ...]]:
+    """The ``motion_pairs`` rows of a unit's ego-motion residuals (each of one pair)."""
+    rows: list[tuple[object, ...]] = []
+    for pair in pairs:
+        if pair.sequence != sequence:
+            raise ValueError(f"unit '{unit}' of {sequence} holds a pair of {pair.sequence}")
+        sums = pair.sums
+        if len(sums.offsets) != 1:
+            raise ValueError(f"{pair.method} at {pair.stamp}: not the sums of one pair")
+        rows.append(
+            (
+                sequence,
+                int(pair.stamp),
+                pair.method,
+                int(pair.previous),
+                json.dumps(list(sums.criteria)),
+                np.asarray(sums.thresholds, dtype=_BLOB).tobytes(),
+                float(sums.offsets[0]),
+                np.ascontiguousarray(sums.sums, dtype=_BLOB).tobytes(),
+            )
+        )
+    return rows
+
+
+def read_motion(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, tuple[int, TemporalSums]]:
+    """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
+    rows = connection.execute(
+        "SELECT method, criteria, thresholds, offset, sums FROM motion_pairs "
+        "WHERE sequence = ? ORDER BY stamp",
+        (sequence,),
+    )
+    found: dict[str, list[TemporalSums]] = {}
+    for method, criteria, thresholds, offset, blob in rows:
+        names = tuple(json.loads(criteria))
+        levels = tuple(np.frombuffer(thresholds, dtype=_BLOB).astype(float).tolist())
+        sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
+        width = len(BASE_COLUMNS) + len(levels)
+        if sums.size != len(names) * width:
+            raise InputError(f"{where}: a stored ego-motion row of {method} is damaged")
+        one = TemporalSums("egomotion", names, levels, sums.reshape(len(names), width), (offset,))
+        found.setdefault(method, []).append(one)
+    order = [m for m in methods if m in found] + [m for m in found if m not in methods]
+    return {method: (len(found[method]), _total(found[method])) for method in order}
+
+
+def _total(parts: Sequence[TemporalSums]) -> TemporalSums:
+    total = parts[0]
+    for part in parts[1:]:
+        total = total + part
+    return total
