@@ -722,9 +722,10 @@ def test_estimates_that_cannot_be_scored_are_failed_and_keep_their_arrivals(
             return msg
 
         rows, columns = np.mgrid[0:24, 0:32]
-        start = time.time_ns()
+        previous = 0
         for k, case in enumerate(["bad size", "both fail", "both scored", "gt fails", "bad enc"]):
-            stamp = start + k * 100_000_000
+            stamp = max(time.time_ns(), previous + 1)  # stamped as sent: never after its receipt
+            previous = stamp
             gt = (8.0 + 0.25 * columns + 0.1 * rows + k).astype(np.float32)
             good, bad = gt + np.float32(0.3), gt + np.float32(2.0)
             gt_msg = image_to_msg(store, gt, stamp, "left", "32FC1")
