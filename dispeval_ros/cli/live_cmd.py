@@ -40,7 +40,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default="dds",
         help="'dds' (Cyclone DDS, interoperates with rmw_cyclonedds_cpp); the only one for now",
     )
-    run = streams.add_stream_options(parser)
+    run = streams.add_stream_options(parser, egomotion=True)
     alarms = parser.add_argument_group("alarms (levels of the published statuses)")
     alarms.add_argument("--warn", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=20")
     alarms.add_argument("--error", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=40")

@@ -35,6 +35,7 @@ from dispeval_ros.dds.diagnostics import diagnostic_array, vector_message
 from dispeval_ros.dds.transport import DdsTransport, Received
 from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
+    DYNAMIC_TF,
     FLOAT64_MULTI_ARRAY,
     RESULTS,
     SENSOR_DATA,
@@ -43,7 +44,7 @@ from dispeval_ros.dds.wire import (
     vector_topic,
 )
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.stream.config import QUEUE_SIZE
+from dispeval_ros.stream.config import QUEUE_SIZE, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE
 from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
 from dispeval_ros.stream.delivery import Delivery, delivery_record
 from dispeval_ros.stream.runner import LiveEvaluator
@@ -75,6 +76,19 @@ def warm_up(config: CoreConfig) -> None:
     if free is not None:  # the ground-truth-free kernels too
         image = (cols * 4 % 256).astype(np.uint8)
         free.score(free.pair(image, image), estimate)
+
+
+def subscription_qos(topic: str, msgtype: str, sensor: QosProfile) -> QosProfile:
+    """A topic's reader QoS: transforms as tf2_ros's listeners subscribe them, else ``sensor``.
+
+    ``/tf_static`` latched (a late reader still gets the mounts), ``/tf`` reliable keep-last
+    100 (the bursts of a robot's transforms are not lost).
+    """
+    if msgtype == TF_TYPE and topic == TF_STATIC_TOPIC:
+        return STATIC_TF
+    if msgtype == TF_TYPE and topic == TF_TOPIC:
+        return DYNAMIC_TF
+    return sensor
 
 
 class DdsEvaluator:
@@ -134,9 +148,7 @@ class DdsEvaluator:
         self.thread = transport.reader_thread("evaluator", on_error)
         self.on_error = self.thread.on_error
         self.readers = [
-            transport.reader(
-                topic, msgtype, STATIC_TF if topic == config.tf_topic else subscription
-            )
+            transport.reader(topic, msgtype, subscription_qos(topic, msgtype, subscription))
             for topic, msgtype in config.topics.items()
         ]
         for reader in self.readers:
@@ -161,7 +173,7 @@ class DdsEvaluator:
             self._newest_gt = stamp if newest is None else max(newest, stamp)
         elif received.topic in self._info_topics:
             self._infos[received.topic] = received.msg
-        elif received.topic == self.config.tf_topic:
+        elif received.topic == TF_STATIC_TOPIC:  # LiDAR extrinsic or camera mount
             self._static_transforms.append(received.msg)
         self.live.push(received.topic, received.msg)
 
@@ -183,7 +195,7 @@ class DdsEvaluator:
         for topic, msg in self._infos.items():  # the camera is the same in the new pass
             self.live.push(topic, msg)
         for msg in self._static_transforms:  # and so are the static transforms
-            self.live.push(self.config.tf_topic or "", msg)
+            self.live.push(TF_STATIC_TOPIC, msg)
 
     # -- output (the scoring thread) ---------------------------------------------------------
 

@@ -780,3 +780,73 @@ def test_estimates_that_cannot_be_scored_are_failed_and_keep_their_arrivals(
     assert {m: c["failed"] for m, c in summary["sequences"][0]["counts"].items()} == failed
     timing = json.loads((out / "timing.json").read_text())
     assert {name.rpartition("/")[2] for name in timing} == set(topics)
+
+
+@needs_dds
+def test_live_egomotion_over_dds_matches_dispeval_bag(
+    transports: tuple[Any, Any], tmp_path: Path
+) -> None:
+    """``live --egomotion``: make-bag's drive (its exact motion on /tf, the camera's mount on
+    /tf_static, latched) played over DDS gives each method's ego-motion residual exactly as
+    ``dispeval bag --egomotion`` scores it from the same bag, pairs and pooled sums."""
+    from dispeval_ros.cli.live_cmd import live_record
+    from dispeval_ros.dds.evaluator import subscription_qos, warm_up
+    from dispeval_ros.dds.player import BagPlayer
+    from dispeval_ros.dds.session import LiveSession
+    from dispeval_ros.offline.make_bag import synthetic_frames, write_bag
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.stream.summarizer import SummarizerConfig
+    from dispeval_ros.testbed.methods import default_methods
+
+    frames = list(synthetic_frames(5, 320, 96, 10.0, seed=4))
+    bag = tmp_path / "drive"
+    write_bag(bag, iter(frames), storage="rosbag2-sqlite3", methods=default_methods(320)[:1])
+    with BagSource(bag) as source:
+        (method,) = [t for t, i in source.topics.items() if i.msgtype == DISPARITY]
+    name = method.split("/")[2]
+    config = CoreConfig(
+        methods={name: method},
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+        left_image_topic=LEFT_IMAGE,
+        right_image_topic=RIGHT_IMAGE,
+        egomotion=True,
+    )
+    tf_type = "tf2_msgs/msg/TFMessage"
+    assert subscription_qos("/tf", tf_type, wire.SENSOR_DATA) == wire.DYNAMIC_TF
+    assert subscription_qos(TF_STATIC_TOPIC, tf_type, wire.SENSOR_DATA) == wire.STATIC_TF
+    reference = tmp_path / "bag"
+    argv = ["bag", str(bag), "--gt", GT_TOPIC, "--method", f"{name}={method}", "--camera-info"]
+    argv += [LEFT_INFO, RIGHT_INFO, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE]
+    assert main([*argv, "--egomotion", "--out", str(reference), "--quiet"]) == 0
+    with ResultsStore.open(reference) as store:
+        (sequence,) = store.sequences()
+        expected = store.motion_pairs(sequence)
+    assert expected is not None
+    assert expected[name][0] == len(frames) - 1
+
+    publisher, _ = transports
+    warm_up(config)
+    out = tmp_path / "live"
+    record = live_record(config)
+    session = LiveSession(publisher.domain, config, SummarizerConfig(out), record, queue_size=64)
+    try:
+        session.start()
+        calibration = BagPlayer(publisher, bag, [LEFT_INFO, RIGHT_INFO])
+        assert calibration.wait_matched(10) == []
+        calibration.play(rate=None)  # the camera first: every frame then has its principal point
+        assert wait_until(lambda: session.evaluator.live.core.camera() is not None, 30)
+        player = BagPlayer(publisher, bag, list(config.topics))
+        assert player.wait_matched(10) == []
+        player.play(rate=1.0)
+        assert wait_until(lambda: session.status().frames >= len(frames), 30), session.status()
+    finally:
+        session.stop()
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        got = store.motion_pairs(sequence)
+        assert store.problems() == []
+    assert got is not None
+    assert got[name][0] == expected[name][0]
+    np.testing.assert_array_equal(got[name][1].sums, expected[name][1].sums)

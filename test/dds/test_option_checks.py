@@ -50,6 +50,7 @@ def live(tmp_path: Path, *extra: str) -> list[str]:
         (("--duration", "nan"), "--duration"),
         (("--queue-size", "0"), "--queue-size"),
         (("--domain-id", "300"), "out of range"),
+        (("--egomotion",), "--egomotion moves each estimate by the camera's motion: give"),
     ],
 )
 def test_live_refuses_a_bad_option_before_the_transport(

@@ -25,7 +25,7 @@ from ros_support import Ros, ros_import
 
 from dispeval_ros.offline.make_bag import CAMERA_FRAME, ODOM_FRAME, START_NS, synthetic_frames
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
-from dispeval_ros.stream.vectors import motion_from_status
+from dispeval_ros.stream.vectors import read_pairs
 
 nav_msgs = ros_import("nav_msgs.msg")
 geometry_msgs = ros_import("geometry_msgs.msg")
@@ -181,12 +181,14 @@ def run_drive(
 
 
 def motion_of(array: Any) -> dict[str, Any]:
-    """Method → (previous stamp, ego-motion sums) of the statuses that carry them."""
-    found = {}
+    """Method → (previous stamp, ego-motion sums) of the statuses that carry them, read as
+    every summarizer reads them (egomotion without temporal: no pair keys beside them)."""
+    pairs: dict[str, Any] = {}
+    found: dict[str, Any] = {}
     for name, status in statuses(array).items():
-        motion = motion_from_status(convert.status_values(status))
-        if motion is not None:
-            found[name] = motion
+        if name in NOISE:
+            read_pairs(convert.status_record(status), pairs, found)
+    assert not pairs
     return found
 
 
