@@ -194,7 +194,9 @@ def run_command(args: argparse.Namespace) -> int:
                 f"figures: importing matplotlib (its first use builds a font cache) and drawing "
                 f"{len(FIGURES)} figures (and the latency ones where arrival times are recorded)"
             )
-            written = write_figures(store, args.png, latency=data["latency"])
+            written = write_figures(
+                store, args.png, latency=data["latency"], temporal=data["temporal"]
+            )
             steps.say("figures: done")
             print(f"figures: {', '.join(str(path) for path in written)}")
     return 0

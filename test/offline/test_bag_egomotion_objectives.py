@@ -15,65 +15,34 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
+from bag_support import NOISY_BIASED, noisy_biased_drive
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.offline.make_bag import (
-    GT_TOPIC,
-    LEFT_IMAGE,
-    LEFT_INFO,
-    RIGHT_IMAGE,
-    RIGHT_INFO,
-    disparity_topic,
-    estimates_from,
-    synthetic_frames,
-    write_bag,
-)
 from dispeval_ros.summary import objective_table
-from dispeval_ros.testbed.methods import default_methods
 
 FRAMES, WIDTH, HEIGHT = 5, 320, 96
-METHODS = {"noisy": (0.5, 0.0), "biased": (0.0, 1.5)}
-"""Per method: px of Gaussian noise and a constant px offset added to the GT."""
+METHODS = list(NOISY_BIASED)
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def drive(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str]]:
     root = tmp_path_factory.mktemp("egoobjectives")
-    frames = list(synthetic_frames(FRAMES, WIDTH, HEIGHT, 10.0, seed=4))
-    rng = np.random.default_rng(7)
-    sources = []
-    for name, (sigma, bias) in METHODS.items():
-        (root / name).mkdir()
-        for index, frame in enumerate(frames):
-            assert frame.gt is not None
-            gt = frame.gt.astype(np.float32)
-            estimate = gt + bias + rng.normal(0, sigma, gt.shape).astype(np.float32)
-            estimate = np.where(np.isfinite(gt), np.clip(estimate, 0.5, None), np.inf)
-            np.save(root / name / f"{index:06d}.npy", estimate.astype(np.float32))
-        sources.append(estimates_from(name, root / name))
-    write_bag(
-        root / "drive", iter(frames), storage="rosbag2-sqlite3",
-        methods=default_methods(WIDTH)[:1], estimates=sources,
-    )  # fmt: skip
-    return root
+    return root, noisy_biased_drive(root, FRAMES, WIDTH, HEIGHT)
 
 
-def run(root: Path, out: str, *measures: str) -> dict:
-    methods = [item for name in METHODS for item in ("--method", f"{name}={disparity_topic(name)}")]
-    assert main([
-        "bag", str(root / "drive"), "--gt", GT_TOPIC, *methods, "--camera-info", LEFT_INFO,
-        RIGHT_INFO, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE, "--egomotion",
-        "--criteria", "all", "--out", str(root / out), "--quiet", "--objective-measures",
-        *measures,
-    ]) == 0  # fmt: skip
+def run(drive: tuple[Path, list[str]], out: str, *measures: str) -> dict:
+    root, args = drive
+    command = [str(root / out) if a == str(root / "res") else a for a in args]
+    assert main([*command, "--objective-measures", *measures]) == 0
     [sequence] = json.loads((root / out / "summary.json").read_text())["sequences"]
     return sequence
 
 
-def test_adding_the_residual_makes_the_biased_method_a_first_group_member(drive: Path) -> None:
+def test_adding_the_residual_makes_the_biased_method_a_first_group_member(
+    drive: tuple[Path, list[str]],
+) -> None:
     accuracy = run(drive, "sze", "sze")
     assert accuracy["objectives"] == ["all/sze @drive"]
     assert accuracy["models"]["groups"] == {"noisy": 1, "biased": 2}
@@ -90,7 +59,7 @@ def test_adding_the_residual_makes_the_biased_method_a_first_group_member(drive:
     assert biased["bad_0.5"] < 10 < 40 < noisy["bad_0.5"]  # (0.5·√2 px of noise: ≈ 48 %)
     assert biased["mean_abs"] < noisy["mean_abs"]
     assert both["scores"]["noisy"]["all"]["sze"] < both["scores"]["biased"]["all"]["sze"]
-    with ResultsStore.open(drive / "both") as store:
+    with ResultsStore.open(drive[0] / "both") as store:
         methods, names, matrix = objective_table(store, ["egomotion_mean_abs", "egomotion_bad_0.5"])
     assert names == both["objectives"][1:]
     for row, method in enumerate(methods):
@@ -99,14 +68,13 @@ def test_adding_the_residual_makes_the_biased_method_a_first_group_member(drive:
 
 
 def test_residual_objectives_without_egomotion_are_one_line(
-    drive: Path, capsys: pytest.CaptureFixture[str]
+    drive: tuple[Path, list[str]], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    args = [
-        "bag", str(drive / "drive"), "--gt", GT_TOPIC, "--method",
-        f"noisy={disparity_topic('noisy')}", "--camera-info", LEFT_INFO, RIGHT_INFO,
-        "--out", str(drive / "refused"), "--quiet", "--objective-measures", "egomotion_mean_abs",
-    ]  # fmt: skip
-    assert main(args) == 2
+    root, args = drive
+    command = [str(root / "refused") if a == str(root / "res") else a for a in args]
+    command.remove("--egomotion")
+    assert main([*command, "--objective-measures", "egomotion_rms"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert "ego-motion residual measures need --egomotion" in err
+    assert not (root / "refused").exists()
