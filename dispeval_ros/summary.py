@@ -23,8 +23,10 @@ from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.measures import GT_FREE_PREFIX, applies
 from dispeval_ros.core.objectives import (
     default_objective_measures,
+    egomotion_objectives,
     has_points,
     pair_objectives,
+    split_egomotion_measures,
     split_pair_measures,
     split_timing_measures,
     timing_objectives,
@@ -259,6 +261,7 @@ def summarize(
     measures = measures or default_objective_measures(computed)
     scored, timed = split_timing_measures(measures)
     scored, paired = split_pair_measures(scored)
+    scored, moved = split_egomotion_measures(scored)
     unknown = [m for m in scored if computed and m not in computed]
     if unknown:
         raise ConfigurationError(
@@ -273,12 +276,16 @@ def summarize(
         names, block, totals, common = _objectives(store, sequence, methods, scored, granularity)
         timing = sequence_timing(store, sequence)
         pairs = sequence_pairs(store, sequence)
+        motion = sequence_motion(store, sequence)
         if common and timed:
             timing_names, timing_block = timing_objectives(timing, sequence, methods, timed)
             names, block = [*names, *timing_names], np.hstack([block, timing_block])
         if common and paired:
             pair_names, pair_block = pair_objectives(pairs, sequence, methods, paired)
             names, block = [*names, *pair_names], np.hstack([block, pair_block])
+        if common and moved:
+            moved_names, moved_block = egomotion_objectives(motion, sequence, methods, moved)
+            names, block = [*names, *moved_names], np.hstack([block, moved_block])
         present = [m for m in methods if m in totals]
         models = evaluate_models(present, block) if len(present) > 1 and names else None
         summaries.append(
@@ -291,7 +298,7 @@ def summarize(
                 models,
                 timing,
                 pairs,
-                sequence_motion(store, sequence),
+                motion,
             )
         )
         if names:

@@ -138,3 +138,49 @@ def quaternion_matrix(translation: Any, rotation: Any) -> np.ndarray:
     ]
     matrix[:3, 3] = [translation.x, translation.y, translation.z]
     return matrix
+
+
+NOISY_BIASED = {"noisy": (0.5, 0.0), "biased": (0.0, 1.5)}
+"""Per method: px of Gaussian noise and a constant px offset added to the GT."""
+
+
+def noisy_biased_drive(root: Path, frames: int, width: int, height: int) -> list[str]:
+    """A synthetic drive bag (ROOT/drive, with its exact /tf) of :data:`NOISY_BIASED`'s methods.
+
+    ``noisy`` is the more accurate (smaller errors), ``biased`` the steadier (its bias is no
+    temporal noise). Returns the ``dispeval bag --egomotion`` command line (``--out``
+    ROOT/res, criterion ``all``; the estimates kept in ROOT/<method>/NNNNNN.npy).
+    """
+    from dispeval_ros.offline.make_bag import (
+        LEFT_IMAGE,
+        RIGHT_IMAGE,
+        estimates_from,
+        synthetic_frames,
+        write_bag,
+    )
+    from dispeval_ros.testbed.methods import default_methods
+
+    drive = list(synthetic_frames(frames, width, height, 10.0, seed=4))
+    rng = np.random.default_rng(7)
+    sources = []
+    for name, (sigma, bias) in NOISY_BIASED.items():
+        (root / name).mkdir()
+        for index, frame in enumerate(drive):
+            assert frame.gt is not None
+            gt = frame.gt.astype(np.float32)
+            estimate = gt + bias + rng.normal(0, sigma, gt.shape).astype(np.float32)
+            estimate = np.where(np.isfinite(gt), np.clip(estimate, 0.5, None), np.inf)
+            np.save(root / name / f"{index:06d}.npy", estimate.astype(np.float32))
+        sources.append(estimates_from(name, root / name))
+    write_bag(
+        root / "drive", iter(drive), storage="rosbag2-sqlite3",
+        methods=default_methods(width)[:1], estimates=sources,
+    )  # fmt: skip
+    methods = [f"{name}={disparity_topic(name)}" for name in NOISY_BIASED]
+    return [
+        "bag", str(root / "drive"), "--gt", GT_TOPIC,
+        *(item for method in methods for item in ("--method", method)),
+        "--camera-info", LEFT_INFO, RIGHT_INFO, "--left-image", LEFT_IMAGE,
+        "--right-image", RIGHT_IMAGE, "--egomotion", "--criteria", "all",
+        "--out", str(root / "res"), "--quiet",
+    ]  # fmt: skip

@@ -21,6 +21,7 @@ from dispeval_ros.core import (
 from dispeval_ros.core.gtfree import GT_FREE_CRITERION_SETS, GroundTruthFree, is_gt_free
 from dispeval_ros.core.objectives import (
     DEFAULT_OBJECTIVES_TEXT,
+    EGOMOTION_OBJECTIVES_TEXT,
     GT_FREE_OBJECTIVE,
     default_objective_measures,
     objective_matrix,
@@ -212,7 +213,9 @@ def add_objective_options(
         help="measures that form the objectives, each on the criteria it is defined on "
         f"(default: {DEFAULT_OBJECTIVES_TEXT}; add vpe to rank on it beside the GT measures); "
         f"timing measures of stored results ({', '.join(TIMING_MEASURES)}) add one objective "
-        "per sequence",
+        "per sequence; the pair measures of --temporal (tepe...) and, on gtfree: criteria, the "
+        "ego-motion residual of --egomotion, temporal noise without ground truth, not accuracy: "
+        + EGOMOTION_OBJECTIVES_TEXT.replace("%", "%%"),  # (argparse formats help with %)
     )
 
 

@@ -120,14 +120,27 @@ class _Steps:
 
 
 def check_objective_measures(stored: list[str], given: list[str]) -> None:
-    """Refuse ``--objective-measures`` naming neither a stored measure nor a timing measure."""
+    """Refuse ``--objective-measures`` naming neither a stored measure nor a timing one.
+
+    Pair and ego-motion residual measures pass: the summary says in one line when they were
+    not recorded.
+    """
+    from dispeval_ros.core.objectives import is_egomotion_measure, is_pair_measure
     from dispeval_ros.core.timing import TIMING_MEASURES
 
-    unknown = [m for m in given if m not in stored and m not in TIMING_MEASURES]
+    unknown = [
+        m
+        for m in given
+        if m not in stored
+        and m not in TIMING_MEASURES
+        and not is_pair_measure(m)
+        and not is_egomotion_measure(m)
+    ]
     if unknown:
         raise ConfigurationError(
             f"--objective-measures {' '.join(unknown)}: neither stored ({', '.join(stored)}) "
-            f"nor a timing measure ({', '.join(TIMING_MEASURES)})"
+            f"nor a timing measure ({', '.join(TIMING_MEASURES)}), a pair measure (tepe...) or "
+            "an ego-motion residual one (egomotion_rms...)"
         )
 
 
@@ -181,7 +194,9 @@ def run_command(args: argparse.Namespace) -> int:
                 f"figures: importing matplotlib (its first use builds a font cache) and drawing "
                 f"{len(FIGURES)} figures (and the latency ones where arrival times are recorded)"
             )
-            written = write_figures(store, args.png, latency=data["latency"])
+            written = write_figures(
+                store, args.png, latency=data["latency"], temporal=data["temporal"]
+            )
             steps.say("figures: done")
             print(f"figures: {', '.join(str(path) for path in written)}")
     return 0

@@ -8,7 +8,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dispeval_ros.cli import common
-from dispeval_ros.core.objectives import default_objective_measures, is_pair_measure
+from dispeval_ros.core.objectives import (
+    default_objective_measures,
+    is_egomotion_measure,
+    is_pair_measure,
+)
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
@@ -241,7 +245,10 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
     unknown = [
         m
         for m in args.objective_measures
-        if m not in config.scored_measures and not is_timing_measure(m) and m not in paired
+        if m not in config.scored_measures
+        and not is_timing_measure(m)
+        and m not in paired
+        and not (config.egomotion and is_egomotion_measure(m))
     ]
     if unknown:  # found now, not after the whole recording was scored
         temporal = (
@@ -251,6 +258,8 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
             if any(map(is_pair_measure, unknown))
             else ""
         )
+        if any(map(is_egomotion_measure, unknown)):
+            temporal += " (ego-motion residual measures need --egomotion)"
         raise ConfigurationError(
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
             f"({', '.join(config.scored_measures)}) nor timing ({', '.join(TIMING_MEASURES)})"

@@ -3,14 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dispeval_ros.core import registry
-from dispeval_ros.core.measures import GT_FREE_MEASURES, HIGHER_IS_BETTER
+from dispeval_ros.core.measures import (
+    GT_FREE_MEASURES,
+    GT_FREE_PREFIX,
+    HIGHER_IS_BETTER,
+    bad_threshold,
+)
 from dispeval_ros.core.temporal import PairScores, pair_bad_threshold
 from dispeval_ros.core.timing import TIMING_MEASURES, Timing, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
+
+if TYPE_CHECKING:  # (the residual's kernels are not imported to read its sums)
+    from dispeval_ros.core.egomotion import TemporalSums
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 
@@ -180,3 +189,94 @@ def timing_objectives(
                 )
             block[row, column] = -value if TIMING_MEASURES[name].higher_is_better else value
     return [f"{name} @{sequence}" for name in measures], block
+
+
+_EGOMOTION = "egomotion_"
+#: The ego-motion residual's values that can be objectives (lower is better): objective measure
+#: → (its key in :meth:`TemporalSums.summary`, what it is). Temporal noise measured without
+#: ground truth, not accuracy: their objectives are on ``gtfree:`` criteria.
+EGOMOTION_OBJECTIVES: dict[str, tuple[str, str]] = {
+    f"{_EGOMOTION}mean_abs": ("mean_abs", "mean |residual| in px"),
+    f"{_EGOMOTION}rms": ("rms", "rms residual in px"),
+    f"{_EGOMOTION}bad_X": ("bad_X", "% of residuals above X px, X a scored threshold"),
+}
+#: :data:`EGOMOTION_OBJECTIVES` in words, for the options' help.
+EGOMOTION_OBJECTIVES_TEXT = "; ".join(
+    f"{name} ({text})" for name, (_, text) in EGOMOTION_OBJECTIVES.items()
+)
+
+
+def egomotion_key(name: str) -> str | None:
+    """The :meth:`TemporalSums.summary` key of ego-motion objective ``name``, else None."""
+    if name in EGOMOTION_OBJECTIVES and not name.endswith("_X"):
+        return EGOMOTION_OBJECTIVES[name][0]
+    if not name.startswith(_EGOMOTION):
+        return None
+    threshold = bad_threshold(name[len(_EGOMOTION) :])
+    return None if threshold is None else f"bad_{threshold:g}"
+
+
+def is_egomotion_measure(name: str) -> bool:
+    """Whether ``name`` is an ego-motion residual objective (``egomotion_rms``…)."""
+    return egomotion_key(name) is not None
+
+
+def split_egomotion_measures(measures: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The other measures and the ego-motion residual measures of ``measures``."""
+    return (
+        [m for m in measures if not is_egomotion_measure(m)],
+        [m for m in measures if is_egomotion_measure(m)],
+    )
+
+
+def egomotion_objectives(
+    motion: Mapping[str, tuple[int, TemporalSums]] | None,
+    sequence: str,
+    methods: Sequence[str],
+    measures: Sequence[str],
+) -> tuple[list[str], np.ndarray]:
+    """The ego-motion residual objectives: ``gtfree:criterion/measure @sequence``, minimised.
+
+    ``motion``: per method its pairs and their pooled sums (the residual is a mean over
+    the counted pixels, which fewer pairs do not lower). Only criteria where some method
+    counted a pixel; without residuals recorded, a method without one, a threshold not
+    scored or a value undefined for one method, one line.
+    """
+    if not measures:
+        return [], np.empty((len(methods), 0))
+    what = f"objective measure(s) {', '.join(measures)}"
+    if not motion:
+        raise ConfigurationError(
+            f"{what}: no ego-motion residual recorded for sequence {sequence} (run with "
+            "--egomotion, on a sequence of two frames or more with /tf)"
+        )
+    missing = [m for m in methods if m not in motion]
+    if missing:
+        raise ConfigurationError(
+            f"{what}: {', '.join(missing)} has no ego-motion pair in sequence {sequence}"
+        )
+    first = motion[methods[0]][1]
+    keys = [str(egomotion_key(m)) for m in measures]
+    scored = first.summary(first.criteria[0])
+    unknown = [m for m, key in zip(measures, keys, strict=True) if key not in scored]
+    if unknown:
+        levels = ", ".join(f"{t:g}" for t in first.thresholds)
+        raise ConfigurationError(
+            f"objective measure(s) {', '.join(unknown)}: the ego-motion residual was scored "
+            f"at thresholds {levels} px only"
+        )
+    criteria = [
+        c for c in first.criteria if any(s.column(c, "n_residual") > 0 for _, s in motion.values())
+    ]
+    block = np.empty((len(methods), len(criteria) * len(keys)), dtype=np.float64)
+    for row, method in enumerate(methods):
+        sums = motion[method][1]
+        values = [sums.summary(c)[key] for c in criteria for key in keys]
+        block[row] = values
+        if not np.isfinite(block[row]).all():
+            raise ConfigurationError(
+                f"{what}: {method} has no residual counted on some criterion of sequence "
+                f"{sequence} ({', '.join(criteria)}); choose other criteria"
+            )
+    names = [f"{GT_FREE_PREFIX}{c}/{m} @{sequence}" for c in criteria for m in measures]
+    return names, block

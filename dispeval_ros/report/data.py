@@ -51,6 +51,7 @@ from dispeval_ros.report.recipes import (  # recipe_values: also from here, its 
     recipe_values,  # noqa: F401
 )
 from dispeval_ros.report.reference import reference_text
+from dispeval_ros.report.temporal import temporal_data
 from dispeval_ros.summary import GRANULARITIES
 
 FORMAT_VERSION = 1
@@ -443,4 +444,5 @@ def build_report_data(
         "defaults": {**defaults, "model": "astar"},
         "thumbnails": json_safe(thumbnails) if thumbnails else None,
         "latency": latency_data(store, objective_measures, granularity),
+        "temporal": temporal_data(store),
     }

@@ -34,6 +34,7 @@ from dispeval_ros.report.latency import latency_data
 from dispeval_ros.report.latency_figures import write_latency_figures
 from dispeval_ros.report.recipes import measure_recipe, recipe_values
 from dispeval_ros.report.reference import reference_text
+from dispeval_ros.report.temporal import temporal_data, write_temporal_figures
 
 FIGURES = ("group_table.png", "curves.png", "criteria_bars.png", "parallel_u2.png")
 MAX_CURVES = 24
@@ -296,12 +297,14 @@ def write_figures(
     selection: Selection | None = None,
     group: int = 1,
     latency: Mapping[str, Any] | None = None,
+    temporal: dict[str, Any] | None = None,
 ) -> list[Path]:
     """Write the PNG figures of ``selection`` (default: the report's) to ``directory``.
 
     The four of :data:`FIGURES`, and where latency is recorded the two of
     :data:`~dispeval_ros.report.latency_figures.LATENCY_FIGURES` (``latency``: the report
-    data's block, made here when not given).
+    data's block, made here when not given), and where pairs are recorded
+    :data:`~dispeval_ros.report.temporal.TEMPORAL_FIGURE` (``temporal``: likewise).
     """
     try:
         import matplotlib
@@ -379,5 +382,8 @@ def write_figures(
             criteria[0] if criteria else "",
             measure,
             relative,
+        )
+        paths += write_temporal_figures(
+            directory, temporal_data(store) if temporal is None else temporal
         )
     return paths

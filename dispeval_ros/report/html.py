@@ -39,6 +39,7 @@ SCRIPT_PARTS = (
     "curves",
     "bars",
     "latency",
+    "temporal",
     "parallel",
     "thumbnails",
     "start",  # main(); the closure closes

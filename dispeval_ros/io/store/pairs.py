@@ -46,36 +46,43 @@ def pair_rows(sequence: str, unit: str, pairs: Iterable[FramePair]) -> list[tupl
     return rows
 
 
-def read_pairs(
-    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
-) -> dict[str, PairScores]:
-    """Per method (in ``methods``' order, then first seen), the sequence's pairs pooled.
+def pair_series(
+    connection: sqlite3.Connection, where: str, sequence: str
+) -> dict[str, list[tuple[int, PairScores]]]:
+    """Per method (first seen), the sequence's pairs one by one: (stamp, scores), by stamp.
 
     ``where``: the database's path, for the one line a damaged row gives.
     """
     rows = connection.execute(
-        "SELECT method, criteria, thresholds, policy, preset, sums FROM pairs "
+        "SELECT stamp, method, criteria, thresholds, policy, preset, sums FROM pairs "
         "WHERE sequence = ? ORDER BY stamp",
         (sequence,),
     )
-    found: dict[str, list[PairScores]] = {}
-    for method, criteria, thresholds, policy, preset, blob in rows:
+    found: dict[str, list[tuple[int, PairScores]]] = {}
+    for stamp, method, criteria, thresholds, policy, preset, blob in rows:
         names = tuple(json.loads(criteria))
         sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
         if preset not in PRESETS or sums.size != len(names) * PAIR_COUNT:
             raise InputError(f"{where}: a stored pair row of {method} is damaged")
-        found.setdefault(method, []).append(
-            PairScores(
-                criteria=names,
-                measures=PRESETS[preset].measures,
-                sums=sums.reshape(len(names), PAIR_COUNT),
-                thresholds=np.frombuffer(thresholds, dtype=_BLOB).astype(np.float64),
-                policy=policy,
-                preset=PRESETS[preset],
-            )
+        scores = PairScores(
+            criteria=names,
+            measures=PRESETS[preset].measures,
+            sums=sums.reshape(len(names), PAIR_COUNT),
+            thresholds=np.frombuffer(thresholds, dtype=_BLOB).astype(np.float64),
+            policy=policy,
+            preset=PRESETS[preset],
         )
+        found.setdefault(method, []).append((int(stamp), scores))
+    return found
+
+
+def read_pairs(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, PairScores]:
+    """Per method (in ``methods``' order, then first seen), the sequence's pairs pooled."""
+    found = pair_series(connection, where, sequence)
     order = [m for m in methods if m in found] + [m for m in found if m not in methods]
-    return {method: PairScores.combine(found[method]) for method in order}
+    return {method: PairScores.combine([p for _, p in found[method]]) for method in order}
 
 
 def motion_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[tuple[object, ...]]:
@@ -102,17 +109,17 @@ def motion_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[
     return rows
 
 
-def read_motion(
-    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
-) -> dict[str, tuple[int, TemporalSums]]:
-    """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
+def motion_series(
+    connection: sqlite3.Connection, where: str, sequence: str
+) -> dict[str, list[tuple[int, TemporalSums]]]:
+    """Per method (first seen), its ego-motion residual sums pair by pair: (stamp, sums)."""
     rows = connection.execute(
-        "SELECT method, criteria, thresholds, offset, sums FROM motion_pairs "
+        "SELECT stamp, method, criteria, thresholds, offset, sums FROM motion_pairs "
         "WHERE sequence = ? ORDER BY stamp",
         (sequence,),
     )
-    found: dict[str, list[TemporalSums]] = {}
-    for method, criteria, thresholds, offset, blob in rows:
+    found: dict[str, list[tuple[int, TemporalSums]]] = {}
+    for stamp, method, criteria, thresholds, offset, blob in rows:
         names = tuple(json.loads(criteria))
         levels = tuple(np.frombuffer(thresholds, dtype=_BLOB).astype(float).tolist())
         sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
@@ -120,9 +127,17 @@ def read_motion(
         if sums.size != len(names) * width:
             raise InputError(f"{where}: a stored ego-motion row of {method} is damaged")
         one = TemporalSums("egomotion", names, levels, sums.reshape(len(names), width), (offset,))
-        found.setdefault(method, []).append(one)
+        found.setdefault(method, []).append((int(stamp), one))
+    return found
+
+
+def read_motion(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, tuple[int, TemporalSums]]:
+    """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
+    found = motion_series(connection, where, sequence)
     order = [m for m in methods if m in found] + [m for m in found if m not in methods]
-    return {method: (len(found[method]), _total(found[method])) for method in order}
+    return {method: (len(found[method]), _total([s for _, s in found[method]])) for method in order}
 
 
 def _total(parts: Sequence[TemporalSums]) -> TemporalSums:

@@ -18,7 +18,7 @@ from dispeval_ros.core.records import FrameTiming, MatchCounts, Problem
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store.lock import _FolderLock
-from dispeval_ros.io.store.pairs import read_motion, read_pairs
+from dispeval_ros.io.store.pairs import motion_series, pair_series, read_motion, read_pairs
 from dispeval_ros.io.store.schema import (
     _BLOB,
     _FRAME_ORDER,
@@ -373,6 +373,18 @@ class ResultsReader:
         if not self.records_motion():
             return None
         return read_motion(self._db, str(self.path), sequence, self._names("methods"))
+
+    def pair_series(self, sequence: str) -> dict[str, list[tuple[int, PairScores]]] | None:
+        """Per method, the sequence's pairs one by one (stamp, scores); None: not recorded."""
+        if not self.records_pairs():
+            return None
+        return pair_series(self._db, str(self.path), sequence)
+
+    def motion_series(self, sequence: str) -> dict[str, list[tuple[int, TemporalSums]]] | None:
+        """Per method, its ego-motion residual pair by pair (stamp, sums); None: not kept."""
+        if not self.records_motion():
+            return None
+        return motion_series(self._db, str(self.path), sequence)
 
     def problems(self, sequence: str | None = None) -> list[Problem]:
         """Recorded problems of one sequence (or all), in the order they were written."""

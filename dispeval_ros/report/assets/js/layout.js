@@ -87,7 +87,8 @@
       el('h2', { text: 'Run' }), buildRunInfo(),
     ]);
 
-    const main = el('main', {}, [models, curves, bars, buildLatencyView(), parallel, thumbs, run]);
+    const main = el('main', {}, [models, curves, bars, buildLatencyView(), buildTemporalView(),
+      parallel, thumbs, run]);
     app.appendChild(header);
     app.appendChild(el('div', { className: 'layout' }, [ui.controls, main]));
   }

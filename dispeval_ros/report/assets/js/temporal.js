@@ -1,0 +1,104 @@
+  // ---- temporal consistency: pooled TEPE, the ego-motion residual (noise), per pair of frames
+  // (report/temporal.py builds the data: summary.json's temporal and egomotion entries)
+
+  /* The section, or nothing where no pair is recorded (an older database: the page as before). */
+  function buildTemporalView() {
+    const info = D.raw.temporal;
+    D.temporalState = { recorded: !!(info && info.recorded), sequences: {} };
+    if (!info || !info.recorded) return null;
+    const children = [el('h2', { text: 'Temporal consistency' })];
+    for (const name of Object.keys(info.sequences)) {
+      const block = info.sequences[name];
+      const shown = { tepe: [], residual: [] };
+      D.temporalState.sequences[name] = shown;
+      children.push(el('h3', { text: name }));
+      if (block.temporal) {
+        const measures = block.tepe_measures;
+        for (const method of Object.keys(block.temporal)) {
+          const entry = block.temporal[method];
+          for (const criterion of Object.keys(entry.criteria)) {
+            const values = entry.criteria[criterion];
+            const row = [method, criterion, entry.pairs, values.n_pair];
+            for (const q of measures) row.push(own(values, q));
+            shown.tepe.push(row);
+          }
+        }
+        children.push(el('p', { className: 'muted small', text: info.tepe_note +
+          (info.preset ? ' (preset ' + info.preset + ')' : '') }));
+        children.push(simpleTable(['method', 'criterion', 'pairs', 'n_pair', ...block.tepe_headers],
+          shown.tepe.map(cells), 'temporal-tepe-' + name));
+      }
+      if (block.egomotion) {
+        const columns = block.residual_columns;
+        for (const method of Object.keys(block.egomotion)) {
+          const entry = block.egomotion[method];
+          for (const criterion of Object.keys(entry.criteria)) {
+            const values = entry.criteria[criterion];
+            const row = [method, criterion, entry.pairs, values.n_residual];
+            for (const q of columns) row.push(own(values, q));
+            shown.residual.push(row);
+          }
+        }
+        children.push(el('p', { className: 'muted small noise-note', text: info.noise_note }));
+        children.push(simpleTable(['method', 'criterion (noise, not accuracy)', 'pairs',
+          'n_residual'].concat(columns.map(residualHeader)), shown.residual.map(cells),
+        'temporal-residual-' + name));
+      }
+      const plots = el('div', { className: 'bars temporal-plots' });
+      if (Object.keys(block.tepe_series).length) {
+        plots.appendChild(pairChart(name + ' · TEPE per pair', info.tepe_label,
+          block.tepe_series, block.frames, 'tepe-line'));
+      }
+      if (Object.keys(block.residual_series).length) {
+        plots.appendChild(pairChart(name + ' · ego-motion residual per pair (noise, no GT)',
+          info.residual_label, block.residual_series, block.frames, 'residual-line'));
+      }
+      children.push(plots);
+    }
+    return el('section', { id: 'temporal-view', className: 'view' }, children);
+  }
+
+  function residualHeader(key) {
+    return key + (key.indexOf('bad_') === 0 ? ' [%]' : ' [px]');
+  }
+
+  /* A table row's cells: counts and names as they are, values as the page writes numbers. */
+  function cells(row) {
+    return row.map(function (v, i) {
+      return i < 2 ? v : (v === null || v === undefined ? '–' : fmt(v));
+    });
+  }
+
+  /* Each method's value per pair (x: the later frame's number), one line per method. */
+  function pairChart(title, yLabel, series, count, cls) {
+    const width = 420, height = 300;
+    const box = { left: 64, right: width - 100, top: 24, bottom: height - 40 };
+    const methods = Object.keys(series);
+    const all = [];
+    for (const m of methods) for (const row of series[m].values) all.push(row[1]);
+    const yr = extent(all);
+    const xs = linear(1, Math.max(1, count), box.left, box.right);
+    const ys = linear(yr[0], yr[1], box.bottom, box.top);
+    const root = chartFrame(title, 'frame (the later of each pair)', yLabel, width, height, box);
+    const labels = [];
+    for (let i = 1; i <= count; i++) labels.push(i);
+    ticks(root, box, xs, ys, frameTicks(labels).map(function (x) {
+      return [labels[x], String(labels[x])];
+    }), [yr[0], yr[1]]);
+    methods.forEach(function (method, k) {
+      const colour = LINE_COLOURS[k % LINE_COLOURS.length];
+      const rows = series[method].values.filter(function (row) { return row[1] !== null; });
+      if (rows.length) {
+        root.appendChild(svg('polyline', { fill: 'none', stroke: colour, 'stroke-width': 1.2,
+          class: cls, points: rows.map(function (row) {
+            return xs(row[0] + 1) + ',' + ys(row[1]);
+          }).join(' ') }));
+      }
+      root.appendChild(svg('text', { x: box.right + 8, y: box.top + 12 + 14 * k, class: 'tick',
+        style: 'fill:' + colour }, method));
+    });
+    return el('figure', { className: 'latency-figure' }, [root]);
+  }
+
+  /* Test hook: the rows the temporal tables show (method, criterion, pairs, count, values). */
+  window.dispevalTemporal = function () { return D.temporalState; };
