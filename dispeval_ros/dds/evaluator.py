@@ -59,6 +59,7 @@ from dispeval_ros.stream.vectors import (
 )
 
 VECTOR_QOS = QosProfile(reliable=True, depth=10)
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 MIN_RESTART_NS = 1_000_000_000
 
 
@@ -109,8 +110,17 @@ class DdsEvaluator:
         subscription: QosProfile = SENSOR_DATA,
         on_result: Callable[[FrameResult], None] | None = None,
         on_error: Callable[[str], None] | None = None,
+        odometry: str | None = None,
+        mount: np.ndarray | None = None,
     ) -> None:
+        """``odometry``, ``mount``: an odometry-only robot's motion and camera mount.
+
+        With ``egomotion``: the nav_msgs/Odometry topic read instead of /tf, and the camera on
+        its child frame (4×4) instead of /tf_static.
+        """
         self.transport = transport
+        self.odometry = odometry
+        self.mount = mount
         self.config = config
         self.alarms = alarms
         self.queue_size = queue_size
@@ -147,15 +157,24 @@ class DdsEvaluator:
         self.live = self._new_live()
         self.thread = transport.reader_thread("evaluator", on_error)
         self.on_error = self.thread.on_error
+        topics = dict(config.topics)
+        if odometry is not None:  # the motion from the odometry, the mount maybe given
+            topics.pop(TF_TOPIC, None)
+            topics[odometry] = ODOMETRY_TYPE
+            if mount is not None and config.tf_topic is None:
+                topics.pop(TF_STATIC_TOPIC, None)
         self.readers = [
             transport.reader(topic, msgtype, subscription_qos(topic, msgtype, subscription))
-            for topic, msgtype in config.topics.items()
+            for topic, msgtype in topics.items()
         ]
         for reader in self.readers:
             self.thread.add(reader, self._push)
 
     def _new_live(self) -> LiveEvaluator:
-        return LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size, workers=2)
+        live = LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size, workers=2)
+        if live.core.motion is not None:
+            live.core.motion.mount = self.mount
+        return live
 
     def start(self) -> None:
         """Start taking messages."""
@@ -164,6 +183,11 @@ class DdsEvaluator:
     # -- input (the reader thread) -----------------------------------------------------------
 
     def _push(self, received: Received) -> None:
+        if received.topic == self.odometry:
+            motion = self.live.core.motion
+            if motion is not None:
+                motion.push_odometry(received.topic, received.msg)
+            return
         if received.topic == self.config.gt_topic:
             stamp = stamp_ns(received.msg.header)
             newest = self._newest_gt

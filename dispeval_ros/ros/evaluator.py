@@ -219,9 +219,11 @@ class EvaluatorNode(Node):
         )
 
     def _motion_subscriptions(self) -> list[Any]:
-        """With ``egomotion``: /tf and /tf_static (tf2_msgs), and/or the odometry topic.
+        """With ``egomotion``: /tf and /tf_static (tf2_msgs), or the odometry topic.
 
-        Each message goes to the core's motion source as it comes (no receipt time needed).
+        The odometry is read instead of /tf and ``camera_mount`` instead of /tf_static, as
+        ``dispeval live`` reads them. Each message goes to the core's motion source as it
+        comes (no receipt time needed).
         """
         motion = self._live.core.motion
         if motion is None:
@@ -229,10 +231,14 @@ class EvaluatorNode(Node):
         options = self.options
         motion.mount = static_tf.mount_matrix(options.camera_mount)
         subscriptions = []
+        transforms = [(TF_TOPIC, static_tf.dynamic_tf_qos())]
+        if options.odometry_topic is not None:
+            transforms = []
+        if options.camera_mount is None:
+            transforms.append((TF_STATIC_TOPIC, static_tf.static_tf_qos()))
         tf_class = static_tf.tf_message_class(options.odometry_topic is None, egomotion=True)
         if tf_class is not None:
-            for topic, qos in ((TF_TOPIC, static_tf.dynamic_tf_qos()),
-                               (TF_STATIC_TOPIC, static_tf.static_tf_qos())):  # fmt: skip
+            for topic, qos in transforms:
                 callback = functools.partial(motion.push, topic)
                 subscriptions.append(self.create_subscription(tf_class, topic, callback, qos))
         if options.odometry_topic is not None:

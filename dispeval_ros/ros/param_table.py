@@ -254,7 +254,8 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         STRING,
         "",
         "With egomotion: a nav_msgs/msg/Odometry topic whose pose (header.frame_id -> "
-        "child_frame_id) moves the camera, for robots that publish no /tf. Empty: /tf only",
+        "child_frame_id) moves the camera, read instead of /tf (robots that publish no /tf). "
+        "Empty: /tf",
         "empty or a topic; needs egomotion",
     ),
     Param(

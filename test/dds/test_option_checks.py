@@ -51,6 +51,24 @@ def live(tmp_path: Path, *extra: str) -> list[str]:
         (("--queue-size", "0"), "--queue-size"),
         (("--domain-id", "300"), "out of range"),
         (("--egomotion",), "--egomotion moves each estimate by the camera's motion: give"),
+        (("--odometry", "/odom"), "--odometry moves the camera for --egomotion: give it too"),
+        (
+            ("--egomotion", "--camera-info", "/l", "/r", "--camera-mount", "mount.txt"),
+            "--camera-mount mounts the camera on the odometry's child frame: give --odometry",
+        ),
+        (
+            (
+                "--egomotion",
+                "--camera-info",
+                "/l",
+                "/r",
+                "--odometry",
+                "/odom",
+                "--camera-mount",
+                "no-such-mount.txt",
+            ),
+            "no-such-mount.txt",
+        ),
     ],
 )
 def test_live_refuses_a_bad_option_before_the_transport(
