@@ -90,6 +90,14 @@ def test_good_options_reach_the_transport(
     extra = ("--warn", "all/bmp=20", "near/bad_2=30", "--error", "all/density=0.5")
     assert_refused(main(live(tmp_path / "out", *extra)), capsys.readouterr().err, NO_TRANSPORT)
     assert_refused(main(["play", str(bag)]), capsys.readouterr().err, NO_TRANSPORT)
+    mount = tmp_path / "mount.txt"
+    mount.write_text("0.3 0.3 1.65 0.5 -0.5 0.5 -0.5  # x y z qx qy qz qw\n")
+    ego = ("--camera-info", "/l", "/r", "--egomotion", "--odometry", "/odom")
+    assert_refused(
+        main(live(tmp_path / "out", *ego, "--camera-mount", str(mount))),
+        capsys.readouterr().err,
+        NO_TRANSPORT,
+    )
 
 
 @pytest.mark.parametrize(
