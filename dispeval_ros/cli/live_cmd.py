@@ -40,7 +40,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default="dds",
         help="'dds' (Cyclone DDS, interoperates with rmw_cyclonedds_cpp); the only one for now",
     )
-    run = streams.add_stream_options(parser)
+    run = streams.add_stream_options(parser, egomotion=True)
     alarms = parser.add_argument_group("alarms (levels of the published statuses)")
     alarms.add_argument("--warn", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=20")
     alarms.add_argument("--error", nargs="+", default=[], metavar="C/M=V", help="e.g. all/bmp=40")
@@ -66,6 +66,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--duration", type=float, default=None, metavar="S", help="stop after S seconds"
     )
     run.add_argument("--quiet", action="store_true", help="no live line")
+    temporal = next(g for g in parser._action_groups if g.title == "temporal")
+    temporal.add_argument(
+        "--odometry",
+        metavar="TOPIC",
+        help="with --egomotion: a nav_msgs/Odometry topic whose pose (header.frame_id → "
+        "child_frame_id) moves the camera, read instead of /tf (a robot that publishes "
+        "odometry only)",
+    )
+    temporal.add_argument(
+        "--camera-mount",
+        type=Path,
+        metavar="FILE",
+        help="with --odometry: the odometry's child frame → left optical frame, a file of 16 "
+        "numbers (4×4) or 7 (x y z qx qy qz qw) as --extrinsic; default: from /tf_static (or "
+        "the child frame is the camera's)",
+    )
     environment.add_arguments(parser)
     parser.set_defaults(run=run_command)
 
@@ -82,6 +98,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.queue_size < 1:
         raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
     config = streams.core_config(args, "live streams")  # also checks the objective measures
+    mount = odometry_mount(args)
 
     from dispeval_ros.dds.evaluator import warm_up
     from dispeval_ros.dds.session import LiveSession
@@ -110,6 +127,8 @@ def run_command(args: argparse.Namespace) -> int:
         alarms=alarms,
         queue_size=args.queue_size,
         on_error=_warn,
+        odometry=args.odometry,
+        mount=mount,
     )
     stop = threading.Event()
     previous = install_stop_handlers(stop)
@@ -129,6 +148,22 @@ def run_command(args: argparse.Namespace) -> int:
         session.stop()
         restore_handlers(previous)
     return _report(session, summary, args.out)
+
+
+def odometry_mount(args: argparse.Namespace) -> Any:
+    """``--odometry`` and ``--camera-mount`` checked (each needs the one before); the mount."""
+    if args.odometry is not None and not args.egomotion:
+        raise ConfigurationError("--odometry moves the camera for --egomotion: give it too")
+    if args.camera_mount is None:
+        return None
+    if args.odometry is None:
+        raise ConfigurationError(
+            "--camera-mount mounts the camera on the odometry's child frame: give --odometry "
+            "too (with /tf, the mount comes from /tf_static)"
+        )
+    from dispeval_ros.io.lidar import read_extrinsic
+
+    return read_extrinsic(args.camera_mount)
 
 
 def live_record(config: Any) -> dict[str, object]:

@@ -141,7 +141,7 @@ def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False
             action="store_true",
             help="also score each method's ego-motion residual over the same pairs (temporal "
             "noise without GT, on gtfree: criteria: frame t's estimate moved into frame t+1 by "
-            "the camera's motion from the bag's /tf; needs --camera-info; docs/method.md)",
+            "the camera's motion from /tf and /tf_static; needs --camera-info; docs/method.md)",
         )
 
 
@@ -234,7 +234,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         tolerance_ns=round(non_negative_ms(args.tolerance, "--tolerance") * _NS_PER_MS),
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
         temporal=args.temporal,
-        egomotion=bool(getattr(args, "egomotion", False)),  # (bag only, for now)
+        egomotion=bool(getattr(args, "egomotion", False)),  # bag and live
         pair_gap_ns=round(non_negative_ms(args.pair_gap, "--pair-gap") * _NS_PER_MS),
         names=names,
     )

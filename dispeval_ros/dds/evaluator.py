@@ -35,6 +35,7 @@ from dispeval_ros.dds.diagnostics import diagnostic_array, vector_message
 from dispeval_ros.dds.transport import DdsTransport, Received
 from dispeval_ros.dds.wire import (
     DIAGNOSTIC_ARRAY,
+    DYNAMIC_TF,
     FLOAT64_MULTI_ARRAY,
     RESULTS,
     SENSOR_DATA,
@@ -43,7 +44,7 @@ from dispeval_ros.dds.wire import (
     vector_topic,
 )
 from dispeval_ros.io.messages import stamp_ns
-from dispeval_ros.stream.config import QUEUE_SIZE
+from dispeval_ros.stream.config import QUEUE_SIZE, TF_STATIC_TOPIC, TF_TOPIC, TF_TYPE
 from dispeval_ros.stream.core import CoreConfig, FrameResult, MethodCounts
 from dispeval_ros.stream.delivery import Delivery, delivery_record
 from dispeval_ros.stream.runner import LiveEvaluator
@@ -58,6 +59,7 @@ from dispeval_ros.stream.vectors import (
 )
 
 VECTOR_QOS = QosProfile(reliable=True, depth=10)
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 MIN_RESTART_NS = 1_000_000_000
 
 
@@ -75,6 +77,19 @@ def warm_up(config: CoreConfig) -> None:
     if free is not None:  # the ground-truth-free kernels too
         image = (cols * 4 % 256).astype(np.uint8)
         free.score(free.pair(image, image), estimate)
+
+
+def subscription_qos(topic: str, msgtype: str, sensor: QosProfile) -> QosProfile:
+    """A topic's reader QoS: transforms as tf2_ros's listeners subscribe them, else ``sensor``.
+
+    ``/tf_static`` latched (a late reader still gets the mounts), ``/tf`` reliable keep-last
+    100 (the bursts of a robot's transforms are not lost).
+    """
+    if msgtype == TF_TYPE and topic == TF_STATIC_TOPIC:
+        return STATIC_TF
+    if msgtype == TF_TYPE and topic == TF_TOPIC:
+        return DYNAMIC_TF
+    return sensor
 
 
 class DdsEvaluator:
@@ -95,8 +110,17 @@ class DdsEvaluator:
         subscription: QosProfile = SENSOR_DATA,
         on_result: Callable[[FrameResult], None] | None = None,
         on_error: Callable[[str], None] | None = None,
+        odometry: str | None = None,
+        mount: np.ndarray | None = None,
     ) -> None:
+        """``odometry``, ``mount``: an odometry-only robot's motion and camera mount.
+
+        With ``egomotion``: the nav_msgs/Odometry topic read instead of /tf, and the camera on
+        its child frame (4×4) instead of /tf_static.
+        """
         self.transport = transport
+        self.odometry = odometry
+        self.mount = mount
         self.config = config
         self.alarms = alarms
         self.queue_size = queue_size
@@ -133,17 +157,24 @@ class DdsEvaluator:
         self.live = self._new_live()
         self.thread = transport.reader_thread("evaluator", on_error)
         self.on_error = self.thread.on_error
+        topics = dict(config.topics)
+        if odometry is not None:  # the motion from the odometry, the mount maybe given
+            topics.pop(TF_TOPIC, None)
+            topics[odometry] = ODOMETRY_TYPE
+            if mount is not None and config.tf_topic is None:
+                topics.pop(TF_STATIC_TOPIC, None)
         self.readers = [
-            transport.reader(
-                topic, msgtype, STATIC_TF if topic == config.tf_topic else subscription
-            )
-            for topic, msgtype in config.topics.items()
+            transport.reader(topic, msgtype, subscription_qos(topic, msgtype, subscription))
+            for topic, msgtype in topics.items()
         ]
         for reader in self.readers:
             self.thread.add(reader, self._push)
 
     def _new_live(self) -> LiveEvaluator:
-        return LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size, workers=2)
+        live = LiveEvaluator(self.config, self._on_result, queue_size=self.queue_size, workers=2)
+        if live.core.motion is not None:
+            live.core.motion.mount = self.mount
+        return live
 
     def start(self) -> None:
         """Start taking messages."""
@@ -152,6 +183,11 @@ class DdsEvaluator:
     # -- input (the reader thread) -----------------------------------------------------------
 
     def _push(self, received: Received) -> None:
+        if received.topic == self.odometry:
+            motion = self.live.core.motion
+            if motion is not None:
+                motion.push_odometry(received.topic, received.msg)
+            return
         if received.topic == self.config.gt_topic:
             stamp = stamp_ns(received.msg.header)
             newest = self._newest_gt
@@ -161,7 +197,7 @@ class DdsEvaluator:
             self._newest_gt = stamp if newest is None else max(newest, stamp)
         elif received.topic in self._info_topics:
             self._infos[received.topic] = received.msg
-        elif received.topic == self.config.tf_topic:
+        elif received.topic == TF_STATIC_TOPIC:  # LiDAR extrinsic or camera mount
             self._static_transforms.append(received.msg)
         self.live.push(received.topic, received.msg)
 
@@ -183,7 +219,7 @@ class DdsEvaluator:
         for topic, msg in self._infos.items():  # the camera is the same in the new pass
             self.live.push(topic, msg)
         for msg in self._static_transforms:  # and so are the static transforms
-            self.live.push(self.config.tf_topic or "", msg)
+            self.live.push(TF_STATIC_TOPIC, msg)
 
     # -- output (the scoring thread) ---------------------------------------------------------
 

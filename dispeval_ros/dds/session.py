@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from dispeval_ros.dds.evaluator import DdsEvaluator
 from dispeval_ros.dds.summarizer import DdsSummarizer
@@ -51,11 +52,20 @@ class LiveSession:
         alarms: AlarmThresholds | None = None,
         queue_size: int = QUEUE_SIZE,
         on_error: Callable[[str], None] | None = None,
+        odometry: str | None = None,
+        mount: Any = None,
     ) -> None:
+        """``odometry``, ``mount``: see :class:`DdsEvaluator`."""
         self.transport = DdsTransport(domain)
         try:
             self.evaluator = DdsEvaluator(
-                self.transport, config, alarms=alarms, queue_size=queue_size, on_error=on_error
+                self.transport,
+                config,
+                alarms=alarms,
+                queue_size=queue_size,
+                on_error=on_error,
+                odometry=odometry,
+                mount=mount,
             )
             self.summarizer = DdsSummarizer(
                 self.transport,

@@ -160,5 +160,8 @@ SUMMARIZER_INPUT = QosProfile(reliable=True, depth=None)
 STATIC_TF = QosProfile(reliable=True, depth=100, transient_local=True)
 """``/tf_static`` as tf2_ros's static broadcaster and listener use it: latched."""
 STATIC_TF_TOPIC = "/tf_static"
+DYNAMIC_TF = QosProfile(reliable=True, depth=100)
+"""``/tf`` as tf2_ros's listener subscribes it (``DynamicListenerQoS``: reliable, keep-last
+100, volatile; ros2/geometry2 tf2_ros/qos.hpp), for ``live --egomotion``."""
 PLAYBACK = QosProfile(reliable=True, depth=10)
 """``ros2 bag play``'s default: reliable, keep-last 10, volatile (matches every subscriber)."""

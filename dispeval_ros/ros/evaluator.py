@@ -26,6 +26,7 @@ and published before the node exits, and the per-method counts are logged.
 
 from __future__ import annotations
 
+import functools
 import os
 import secrets
 import threading
@@ -58,11 +59,14 @@ from dispeval_ros.ros import convert, static_tf
 from dispeval_ros.ros.lifecycle import run_node
 from dispeval_ros.ros.param_table import EVALUATOR_PARAMETERS
 from dispeval_ros.ros.params import declare_parameters, evaluator_options
+from dispeval_ros.stream.config import TF_TOPIC
 from dispeval_ros.stream.core import (
     CAMERA_INFO_TYPE,
     DISPARITY_TYPE,
     IMAGE_TYPE,
     POINT_CLOUD_TYPE,
+    TF_STATIC_TOPIC,
+    TF_TYPE,
     FrameResult,
     MethodCounts,
 )
@@ -182,9 +186,10 @@ class EvaluatorNode(Node):
             self._replay_thread.start()
         else:
             self._tf_listener = self._static_transforms()
+            self._motion_subs = self._motion_subscriptions()
             for topic, type_name in self.config.topics.items():
-                if topic == self.config.tf_topic:
-                    continue  # subscribed by _static_transforms
+                if topic == self.config.tf_topic or type_name == TF_TYPE:
+                    continue  # subscribed by _static_transforms and _motion_subscriptions
                 self.create_subscription(
                     _MESSAGE_CLASSES[type_name],
                     topic,
@@ -212,6 +217,41 @@ class EvaluatorNode(Node):
         return self.create_subscription(
             static_tf.tf_message_class(), topic, self._subscriber(topic), static_tf.static_tf_qos()
         )
+
+    def _motion_subscriptions(self) -> list[Any]:
+        """With ``egomotion``: /tf and /tf_static (tf2_msgs), or the odometry topic.
+
+        The odometry is read instead of /tf and ``camera_mount`` instead of /tf_static, as
+        ``dispeval live`` reads them. Each message goes to the core's motion source as it
+        comes (no receipt time needed).
+        """
+        motion = self._live.core.motion
+        if motion is None:
+            return []
+        options = self.options
+        motion.mount = static_tf.mount_matrix(options.camera_mount)
+        subscriptions = []
+        transforms = [(TF_TOPIC, static_tf.dynamic_tf_qos())]
+        if options.odometry_topic is not None:
+            transforms = []
+        if options.camera_mount is None:
+            transforms.append((TF_STATIC_TOPIC, static_tf.static_tf_qos()))
+        tf_class = static_tf.tf_message_class(options.odometry_topic is None, egomotion=True)
+        if tf_class is not None:
+            for topic, qos in transforms:
+                callback = functools.partial(motion.push, topic)
+                subscriptions.append(self.create_subscription(tf_class, topic, callback, qos))
+        if options.odometry_topic is not None:
+            topic = options.odometry_topic
+            subscriptions.append(
+                self.create_subscription(
+                    static_tf.odometry_class(),
+                    topic,
+                    functools.partial(motion.push_odometry, topic),
+                    static_tf.dynamic_tf_qos(reliable=False),
+                )
+            )
+        return subscriptions
 
     def _subscriber(self, topic: str) -> Callable[[Any], None]:
         def callback(msg: Any) -> None:
@@ -315,7 +355,7 @@ class EvaluatorNode(Node):
         as_fast_as_possible = self.options.bag_rate is None
 
         def push(topic: str, msg: Any, log_time: int) -> None:
-            if topic == self.config.tf_topic:  # static transforms: no header, no stamp shift
+            if self.config.topics.get(topic) == TF_TYPE:  # transforms: no header, no shift
                 self._push(topic, msg, log_time + offset)
                 return
             for seen, value in ((stamps, stamp_ns(msg.header)), (logs, log_time)):
@@ -422,6 +462,9 @@ class EvaluatorNode(Node):
                 f"not every subscriber of {SCORES_TOPIC} acknowledged the last scores within "
                 f"{ACK_TIMEOUT:g} s: they may not have received them"
             )
+        motion = self._live.core.motion
+        for line in [] if motion is None else motion.problems():
+            logger.warning(line)
         for method, counts in self._live.counts().items():
             logger.info(
                 f"{method}: matched {counts.matched}, unmatched {counts.unmatched}, "

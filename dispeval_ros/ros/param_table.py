@@ -235,10 +235,38 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "pair_gap",
         DOUBLE,
         core_default("pair_gap_ns") / NS_PER_SECOND,
-        f"With temporal: {PAIR_GAP_RULE} (s)",
+        f"With temporal or egomotion: {PAIR_GAP_RULE} (s)",
         "(0, 600] s",
         low=0.0,
         high=600.0,
+    ),
+    Param(
+        "egomotion",
+        BOOL,
+        core_default("egomotion"),
+        "Also score each method's ego-motion residual over the same pairs (ground-truth-free "
+        "temporal noise on gtfree:* criteria, not bias): the estimate moved by the camera's "
+        "motion, from /tf and /tf_static (tf2_msgs) or odometry_topic. Needs the CameraInfo "
+        "topics",
+    ),
+    Param(
+        "odometry_topic",
+        STRING,
+        "",
+        "With egomotion: a nav_msgs/msg/Odometry topic whose pose (header.frame_id -> "
+        "child_frame_id) moves the camera, read instead of /tf (robots that publish no /tf). "
+        "Empty: /tf",
+        "empty or a topic; needs egomotion",
+    ),
+    Param(
+        "camera_mount",
+        STRING,
+        "",
+        "With odometry_topic: the odometry's child frame -> left camera optical frame "
+        "(the left CameraInfo's frame_id) transform, as 16 numbers (4x4 row-major), 7 "
+        "('x y z qx qy qz qw') or a file holding either. Empty: the chain from /tf_static, "
+        "or the odometry's child frame is the camera's",
+        "empty, 16 or 7 numbers, or a file; needs odometry_topic",
     ),
     Param(
         "queue_size",

@@ -83,6 +83,7 @@ ROS_NAMES = FieldNames(
         "right_image_topic": "right_image_topic",
         "temporal": "temporal",
         "pair_gap_ns": "pair_gap",
+        "egomotion": "egomotion",
     },
     one="parameter ",
     many="parameters ",
@@ -115,8 +116,11 @@ def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str,
     return methods
 
 
-def lidar_extrinsic(text: str) -> tuple[float, ...] | None:
-    """The ``lidar_extrinsic`` parameter: None (use /tf_static) or the 4×4 matrix's 16 numbers."""
+def lidar_extrinsic(text: str, parameter: str = "lidar_extrinsic") -> tuple[float, ...] | None:
+    """The ``lidar_extrinsic`` parameter: None (use /tf_static) or the 4×4 matrix's 16 numbers.
+
+    ``camera_mount`` is read the same way (``parameter`` names it in the errors).
+    """
     from dispeval_ros.core.transforms import rigid_matrix
     from dispeval_ros.io.lidar import read_extrinsic
 
@@ -129,7 +133,7 @@ def lidar_extrinsic(text: str) -> tuple[float, ...] | None:
         matrix = read_extrinsic(Path(text).expanduser())  # not numbers: a file
     else:
         try:
-            matrix = rigid_matrix(values, "parameter lidar_extrinsic")
+            matrix = rigid_matrix(values, f"parameter {parameter}")
         except DispevalError as error:
             raise ConfigurationError(str(error)) from None
     return tuple(float(v) for v in matrix.reshape(-1))
@@ -184,6 +188,7 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         pair_gap_ns=_seconds_to_ns(
             values.get("pair_gap", core_default("pair_gap_ns") / 1e9), "pair_gap"
         ),
+        egomotion=bool(values.get("egomotion", core_default("egomotion"))),
         names=ROS_NAMES,
     )
 
@@ -203,6 +208,10 @@ class EvaluatorOptions:
     bag_loop: bool
     bag_wait_subscribers: int
     bag_exit: bool
+    odometry_topic: str | None = None
+    """With ``egomotion``: the nav_msgs/Odometry topic of the camera's motion (None: /tf)."""
+    camera_mount: tuple[float, ...] | None = None
+    """With ``odometry_topic``: the odometry's child frame → left optical frame (16 numbers)."""
 
 
 def evaluator_options(values: Mapping[str, Any]) -> EvaluatorOptions:
@@ -222,7 +231,24 @@ def evaluator_options(values: Mapping[str, Any]) -> EvaluatorOptions:
         bag_loop=bool(values["bag_loop"]),
         bag_wait_subscribers=max(0, int(values["bag_wait_subscribers"])),
         bag_exit=bool(values["bag_exit"]),
+        **odometry_options(values),
     )
+
+
+def odometry_options(values: Mapping[str, Any]) -> dict[str, Any]:
+    """``odometry_topic`` and ``camera_mount``: each needs the one before it (one line if not)."""
+    odometry = str(values.get("odometry_topic", "")).strip()
+    mount = lidar_extrinsic(str(values.get("camera_mount", "")), "camera_mount")
+    if odometry and not values.get("egomotion"):
+        raise ConfigurationError(
+            "parameter odometry_topic moves the camera for egomotion: set egomotion:=true too"
+        )
+    if mount is not None and not odometry:
+        raise ConfigurationError(
+            "parameter camera_mount mounts the camera on the odometry's child frame: give "
+            "odometry_topic too (with /tf, the mount comes from /tf_static)"
+        )
+    return {"odometry_topic": odometry or None, "camera_mount": mount}
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
-"""Static transforms for the rclpy evaluator: tf2_ros where installed, else raw /tf_static.
+"""Transforms for the rclpy evaluator: tf2_ros where installed, else raw /tf_static.
 
 Only glue: tf2_ros's buffer answers the core's extrinsic lookups, or (without tf2_ros) the
 node subscribes to ``/tf_static`` with ``tf2_msgs`` and the core composes the chain itself.
-Without either, point-cloud ground truth needs the ``lidar_extrinsic`` parameter.
+Without either, point-cloud ground truth needs the ``lidar_extrinsic`` parameter. With
+``egomotion`` the node hands ``/tf``, ``/tf_static`` (``tf2_msgs``) and ``nav_msgs/Odometry``
+to the core's motion source, subscribed with tf2_ros's QoS.
 """
 
 from __future__ import annotations
@@ -16,6 +18,24 @@ from dispeval_ros.core.transforms import matrix_from_pose
 from dispeval_ros.errors import CalibrationError, ConfigurationError
 
 STATIC_TF_DEPTH = 100
+DYNAMIC_TF_DEPTH = 100
+"""tf2_ros's ``DynamicListenerQoS``: keep last 100, reliable, volatile (ros2/geometry2
+tf2_ros/qos.hpp); its ``StaticListenerQoS`` is :func:`static_tf_qos`'s, transient local."""
+
+
+def dynamic_tf_qos(reliable: bool = True) -> Any:
+    """``/tf``'s QoS as tf2_ros's listener has it; ``reliable`` False also matches best effort.
+
+    An odometry topic is subscribed best effort (both kinds of publisher match it).
+    """
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=DYNAMIC_TF_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.VOLATILE,
+    )
 
 
 def static_tf_qos() -> Any:
@@ -61,13 +81,40 @@ def tf2_lookup(node: Any) -> tuple[Callable[[str, str], np.ndarray], Any] | None
     return lookup, listener
 
 
-def tf_message_class() -> Any:
-    """``tf2_msgs.msg.TFMessage``, or a one-line error saying what to do without it."""
+def tf_message_class(required: bool = True, egomotion: bool = False) -> Any:
+    """``tf2_msgs.msg.TFMessage``, else a one-line error saying what to do.
+
+    Not ``required`` (egomotion with an odometry topic): None without tf2_msgs.
+    """
     try:
         from tf2_msgs.msg import TFMessage
     except ImportError:
+        if not required:
+            return None
+        if egomotion:
+            raise ConfigurationError(
+                "egomotion reads the camera's motion from /tf, but tf2_msgs cannot be "
+                "imported: install it or set the parameter odometry_topic (nav_msgs/Odometry)"
+            ) from None
         raise ConfigurationError(
             "gt_kind pointcloud without lidar_extrinsic reads /tf_static, but neither tf2_ros "
             "nor tf2_msgs can be imported: install them or set the parameter lidar_extrinsic"
         ) from None
     return TFMessage
+
+
+def odometry_class() -> Any:
+    """``nav_msgs.msg.Odometry``, or a one-line error naming the parameter."""
+    try:
+        from nav_msgs.msg import Odometry
+    except ImportError:
+        raise ConfigurationError(
+            "parameter odometry_topic reads nav_msgs/msg/Odometry, but nav_msgs cannot be "
+            "imported: install it (ros-$ROS_DISTRO-nav-msgs)"
+        ) from None
+    return Odometry
+
+
+def mount_matrix(values: tuple[float, ...] | None) -> np.ndarray | None:
+    """The ``camera_mount`` parameter's 16 numbers as a 4×4 (None: none given)."""
+    return None if values is None else np.asarray(values, dtype=np.float64).reshape(4, 4)

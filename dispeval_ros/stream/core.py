@@ -120,9 +120,9 @@ class EvaluationCore:
         self._failed_lock = threading.Lock()
         if config.egomotion and self.pairs is not None:
             self.motion = MotionSource(self.transforms, TF_STATIC_TOPIC)
-            self.pairs.motion = self.motion.history.camera_motion
+            self.pairs.motion = self.motion.camera_motion
             if wait_for_motion:  # a bag: /tf logged after a frame is read before its pair
-                self.pairs.ready = self.motion.history.ready
+                self.pairs.ready = self.motion.ready
         self._negative_t: set[str] = set()
         """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 

@@ -5,17 +5,23 @@ Every ``/tf`` sample and ``/tf_static`` edge goes into a
 ``camera_motion`` and ``ready`` the pair stage's ego-motion residual asks. A sample the history
 refuses (a second parent, a loop, too old, malformed) is kept out and noted, once per reason,
 as a line the front end reports; nothing is silently lost.
+
+A robot that publishes ``nav_msgs/Odometry`` only (no ``/tf``) feeds it through
+:meth:`MotionSource.push_odometry` (its ``odom → child`` pose is a ``/tf`` edge), with the
+camera's mount on that child given as :attr:`MotionSource.mount` where no ``/tf_static`` holds it.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from dispeval_ros.core.transform_history import TransformHistory
-from dispeval_ros.core.transforms import TransformTree
+from dispeval_ros.core.transforms import StaticTransform, TransformTree
 from dispeval_ros.errors import DispevalError
 from dispeval_ros.io.messages import static_transforms_from_msg
-from dispeval_ros.io.tf_messages import transforms_from_msg
+from dispeval_ros.io.tf_messages import odometry_from_msg, transforms_from_msg
 from dispeval_ros.stream.config import TF_TOPIC
 
 MAX_NOTES = 20
@@ -30,6 +36,11 @@ class MotionSource:
         self.static_topic = static_topic
         self.notes: dict[str, int] = {}
         """Each refusal's line → how often it happened."""
+        self.mount: np.ndarray | None = None
+        """The camera's mount (4×4: the odometry's child frame → the camera frame), for an
+        odometry-only robot; None: the chain comes from /tf_static (or the odometry's child
+        is the camera frame)."""
+        self._odometry_child: str | None = None
 
     def takes(self, topic: str) -> bool:
         """Whether ``topic`` is one this source reads."""
@@ -48,6 +59,37 @@ class MotionSource:
         for stamp, edge in samples:
             try:
                 self.history.add(stamp, edge)
+            except DispevalError as error:
+                self._note(str(error))
+
+    def push_odometry(self, topic: str, msg: Any) -> None:
+        """Add one ``nav_msgs/Odometry`` as the /tf edge ``odom → child`` at its stamp."""
+        try:
+            stamp, edge = odometry_from_msg(msg, topic)
+            self._odometry_child = self._odometry_child or edge.child
+            self.history.add(stamp, edge)
+        except DispevalError as error:
+            self._note(str(error))
+
+    def camera_motion(self, camera_frame: str, t0_ns: int, t1_ns: int) -> np.ndarray:
+        """``TransformHistory.camera_motion``, the :attr:`mount` added once the frames are known."""
+        self._mount(camera_frame)
+        return self.history.camera_motion(camera_frame, t0_ns, t1_ns)
+
+    def ready(self, stamp_ns: int, camera_frame: str | None = None) -> bool:
+        """``TransformHistory.ready``, the :attr:`mount` added once the frames are known."""
+        if camera_frame is not None:
+            self._mount(camera_frame)
+        return self.history.ready(stamp_ns, camera_frame)
+
+    def _mount(self, camera_frame: str) -> None:
+        """The mount as the static edge odometry child → ``camera_frame`` (once, when known)."""
+        child = self._odometry_child
+        if self.mount is None or child is None or child == camera_frame:
+            return
+        if camera_frame not in self.history.frames:
+            try:
+                self.history.add_static([StaticTransform(child, camera_frame, self.mount)])
             except DispevalError as error:
                 self._note(str(error))
 

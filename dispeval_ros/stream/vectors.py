@@ -289,8 +289,8 @@ def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores
     from dispeval_ros.core.temporal import PRESETS, PairScores
 
     table = dict(values)
-    if PAIR_PREVIOUS_KEY not in table:
-        return None
+    if PAIR_PREVIOUS_KEY not in table or not any(key in table for key in PAIR_META):
+        return None  # no pair, or only an ego-motion residual's (egomotion without temporal)
     suffix = "/" + PAIR_SUMS_KEY
     criteria = [k[len(PAIR_PREFIX) : -len(suffix)] for k, _ in values if k.endswith(suffix)]
     try:

@@ -30,6 +30,7 @@ from sample_feed import dispeval_process
 from dispeval_ros.cli.main import main
 from dispeval_ros.dds import environment, wire
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of, vector_message
+from dispeval_ros.dds.diagnostics import header as diagnostics_header
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.encoders import disparity_to_msg, image_to_msg
@@ -41,6 +42,7 @@ from dispeval_ros.offline.make_bag import (
     LEFT_INFO,
     RIGHT_IMAGE,
     RIGHT_INFO,
+    START_NS,
     TF_STATIC_TOPIC,
 )
 from dispeval_ros.offline.sample import find_sample_bag
@@ -780,3 +782,114 @@ def test_estimates_that_cannot_be_scored_are_failed_and_keep_their_arrivals(
     assert {m: c["failed"] for m, c in summary["sequences"][0]["counts"].items()} == failed
     timing = json.loads((out / "timing.json").read_text())
     assert {name.rpartition("/")[2] for name in timing} == set(topics)
+
+
+def odometry_of(typestore: Any, frame: Any) -> Any:
+    """make-bag's odom → base_link of a frame as a nav_msgs/Odometry (the rig never turns)."""
+    types = typestore.types
+    stamp = START_NS + round(frame.stamp * 1e9)
+    assert np.array_equal(frame.odometry[:3, :3], np.eye(3))
+    x, y, z = (float(v) for v in frame.odometry[:3, 3])
+    pose = types["geometry_msgs/msg/Pose"](
+        position=types["geometry_msgs/msg/Point"](x=x, y=y, z=z),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+    )
+    twist = types["geometry_msgs/msg/Twist"](
+        linear=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+        angular=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+    )
+    return types["nav_msgs/msg/Odometry"](
+        header=diagnostics_header(typestore, stamp, "odom"),
+        child_frame_id="base_link",
+        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+        twist=types["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)),
+    )
+
+
+@needs_dds
+@pytest.mark.parametrize("motion", ["tf", "odometry"])
+def test_live_egomotion_over_dds_matches_dispeval_bag(
+    transports: tuple[Any, Any], tmp_path: Path, motion: str
+) -> None:
+    """``live --egomotion``: make-bag's drive (its exact motion on /tf, the camera's mount on
+    /tf_static, latched) played over DDS gives each method's ego-motion residual exactly as
+    ``dispeval bag --egomotion`` scores it from the same bag, pairs and pooled sums; so does
+    the drive with its motion sent as nav_msgs/Odometry and the mount given (``--odometry``,
+    ``--camera-mount``) instead of /tf and /tf_static."""
+    from dispeval_ros.cli.live_cmd import live_record
+    from dispeval_ros.dds.evaluator import subscription_qos, warm_up
+    from dispeval_ros.dds.player import BagPlayer
+    from dispeval_ros.dds.session import LiveSession
+    from dispeval_ros.offline.make_bag import synthetic_frames, write_bag
+    from dispeval_ros.stream.core import CoreConfig
+    from dispeval_ros.stream.summarizer import SummarizerConfig
+    from dispeval_ros.testbed.methods import default_methods
+
+    frames = list(synthetic_frames(5, 320, 96, 10.0, seed=4))
+    bag = tmp_path / "drive"
+    write_bag(bag, iter(frames), storage="rosbag2-sqlite3", methods=default_methods(320)[:1])
+    with BagSource(bag) as source:
+        (method,) = [t for t, i in source.topics.items() if i.msgtype == DISPARITY]
+    name = method.split("/")[2]
+    config = CoreConfig(
+        methods={name: method},
+        gt_topic=GT_TOPIC,
+        left_info_topic=LEFT_INFO,
+        right_info_topic=RIGHT_INFO,
+        left_image_topic=LEFT_IMAGE,
+        right_image_topic=RIGHT_IMAGE,
+        egomotion=True,
+    )
+    tf_type = "tf2_msgs/msg/TFMessage"
+    assert subscription_qos("/tf", tf_type, wire.SENSOR_DATA) == wire.DYNAMIC_TF
+    assert subscription_qos(TF_STATIC_TOPIC, tf_type, wire.SENSOR_DATA) == wire.STATIC_TF
+    reference = tmp_path / "bag"
+    argv = ["bag", str(bag), "--gt", GT_TOPIC, "--method", f"{name}={method}", "--camera-info"]
+    argv += [LEFT_INFO, RIGHT_INFO, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE]
+    assert main([*argv, "--egomotion", "--out", str(reference), "--quiet"]) == 0
+    with ResultsStore.open(reference) as store:
+        (sequence,) = store.sequences()
+        expected = store.motion_pairs(sequence)
+    assert expected is not None
+    assert expected[name][0] == len(frames) - 1
+
+    publisher, _ = transports
+    warm_up(config)
+    out = tmp_path / "live"
+    record = live_record(config)
+    odometry = "/robot/odom" if motion == "odometry" else None
+    mount = frames[0].camera_mount if odometry else None
+    session = LiveSession(
+        publisher.domain, config, SummarizerConfig(out), record, queue_size=64,
+        odometry=odometry, mount=mount,
+    )  # fmt: skip
+    topics = list(config.topics)
+    try:
+        session.start()
+        calibration = BagPlayer(publisher, bag, [LEFT_INFO, RIGHT_INFO])
+        assert calibration.wait_matched(10) == []
+        calibration.play(rate=None)  # the camera first: every frame then has its principal point
+        assert wait_until(lambda: session.evaluator.live.core.camera() is not None, 30)
+        if odometry is not None:  # the motion first, as Odometry; no /tf, no /tf_static
+            topics = [t for t in topics if t not in ("/tf", TF_STATIC_TOPIC)]
+            assert sorted(r.topic for r in session.evaluator.readers) == sorted([*topics, odometry])
+            writer = publisher.writer(odometry, "nav_msgs/msg/Odometry", wire.PLAYBACK)
+            assert wait_until(lambda: writer.matched() > 0, 10)
+            for frame in frames:
+                writer.publish(odometry_of(publisher.typestore, frame))
+            source = session.evaluator.live.core.motion
+            last = START_NS + round(frames[-1].stamp * 1e9)
+            assert wait_until(lambda: source.ready(last, "stereo_left"), 10), source.problems()
+        player = BagPlayer(publisher, bag, topics)
+        assert player.wait_matched(10) == []
+        player.play(rate=1.0)
+        assert wait_until(lambda: session.status().frames >= len(frames), 30), session.status()
+    finally:
+        session.stop()
+    with ResultsStore.open(out) as store:
+        (sequence,) = store.sequences()
+        got = store.motion_pairs(sequence)
+        assert store.problems() == []
+    assert got is not None
+    assert got[name][0] == expected[name][0]
+    np.testing.assert_array_equal(got[name][1].sums, expected[name][1].sums)

@@ -50,6 +50,25 @@ def live(tmp_path: Path, *extra: str) -> list[str]:
         (("--duration", "nan"), "--duration"),
         (("--queue-size", "0"), "--queue-size"),
         (("--domain-id", "300"), "out of range"),
+        (("--egomotion",), "--egomotion moves each estimate by the camera's motion: give"),
+        (("--odometry", "/odom"), "--odometry moves the camera for --egomotion: give it too"),
+        (
+            ("--egomotion", "--camera-info", "/l", "/r", "--camera-mount", "mount.txt"),
+            "--camera-mount mounts the camera on the odometry's child frame: give --odometry",
+        ),
+        (
+            (
+                "--egomotion",
+                "--camera-info",
+                "/l",
+                "/r",
+                "--odometry",
+                "/odom",
+                "--camera-mount",
+                "no-such-mount.txt",
+            ),
+            "no-such-mount.txt",
+        ),
     ],
 )
 def test_live_refuses_a_bad_option_before_the_transport(
@@ -71,6 +90,14 @@ def test_good_options_reach_the_transport(
     extra = ("--warn", "all/bmp=20", "near/bad_2=30", "--error", "all/density=0.5")
     assert_refused(main(live(tmp_path / "out", *extra)), capsys.readouterr().err, NO_TRANSPORT)
     assert_refused(main(["play", str(bag)]), capsys.readouterr().err, NO_TRANSPORT)
+    mount = tmp_path / "mount.txt"
+    mount.write_text("0.3 0.3 1.65 0.5 -0.5 0.5 -0.5  # x y z qx qy qz qw\n")
+    ego = ("--camera-info", "/l", "/r", "--egomotion", "--odometry", "/odom")
+    assert_refused(
+        main(live(tmp_path / "out", *ego, "--camera-mount", str(mount))),
+        capsys.readouterr().err,
+        NO_TRANSPORT,
+    )
 
 
 @pytest.mark.parametrize(
