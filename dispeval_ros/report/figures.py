@@ -23,6 +23,7 @@ from dispeval_ros.core.measures import measure_unit
 from dispeval_ros.core.models import ModelResult
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.canvas import measure_label, new_figure, plain_numbers
 from dispeval_ros.report.data import (
     Selection,
     _grid,
@@ -40,24 +41,6 @@ FIGURES = ("group_table.png", "curves.png", "criteria_bars.png", "parallel_u2.pn
 MAX_CURVES = 24
 GROUP_COLOURS = ("#1a9850", "#4575b4", "#f46d43", "#984ea3", "#a6761d", "#e7298a")
 FAIL = "#d62728"
-
-
-def _figure(width: float, height: float) -> Any:
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=(width, height), dpi=100, layout="constrained")
-
-
-def measure_label(measure: str, unit: str) -> str:
-    """An axis label of a measure with its unit (from the registry): ``sze [m]``."""
-    return f"{measure} [{unit}]" if unit else measure
-
-
-def _plain_numbers(axes: Any) -> None:
-    """Y tick labels as short numbers (``2.5e+06``), never a detached ``1e6`` offset text."""
-    from matplotlib.ticker import FuncFormatter
-
-    axes.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.3g}"))
 
 
 def _group_colour(group: int) -> str:
@@ -97,7 +80,7 @@ def group_table_figure(
         for line in models.interpretation.splitlines()
     )
     lines = text.count("\n") + 1
-    figure = _figure(10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines + (0.4 if reference else 0))
+    figure = new_figure(10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines + (0.4 if reference else 0))
     table_axes, text_axes = figure.subplots(
         2, 1, gridspec_kw={"height_ratios": [len(rows) + 1, 0.8 * lines]}
     )
@@ -157,7 +140,7 @@ def curves_figure(
     from matplotlib.ticker import MaxNLocator
 
     shown = list(range(min(len(methods), MAX_CURVES)))
-    figure = _figure(10.0, 0.9 + 0.75 * max(1, len(shown)))
+    figure = new_figure(10.0, 0.9 + 0.75 * max(1, len(shown)))
     axes_list = figure.subplots(max(1, len(shown)), 1, sharex=True, squeeze=False)[:, 0]
     frames = np.arange(1, frame_values.shape[0] + 1)
     finite = frame_values[np.isfinite(frame_values)]
@@ -176,7 +159,7 @@ def curves_figure(
         axes.set_ylabel(methods[index], rotation=0, ha="right", va="center", fontsize=8)
         axes.tick_params(labelsize=7)
         axes.xaxis.set_major_locator(MaxNLocator(integer=True))
-        _plain_numbers(axes)
+        plain_numbers(axes)
     label = measure_label(measure, unit)
     axes_list[0].set_title(
         f"{label} of criterion {criterion} per frame (red: missing/failed frame, undefined "
@@ -205,7 +188,7 @@ def criteria_bars_figure(
     """One bar panel per criterion: the measure of each method over the common frames."""
     columns = max(1, min(3, len(criteria)))
     rows = math.ceil(max(1, len(criteria)) / columns)
-    figure = _figure(4.0 * columns, 0.6 + 2.9 * rows)
+    figure = new_figure(4.0 * columns, 0.6 + 2.9 * rows)
     axes_grid = figure.subplots(rows, columns, squeeze=False).ravel()
     colours = [_group_colour(g) for g in groups]
     positions = np.arange(len(methods))
@@ -219,7 +202,7 @@ def criteria_bars_figure(
             axes.set_xticks([])
         axes.tick_params(axis="y", labelsize=7)
         axes.set_ylabel(measure_label(measure, unit), fontsize=8)
-        _plain_numbers(axes)
+        plain_numbers(axes)
     for axes in axes_grid[len(criteria) :]:
         axes.axis("off")
     figure.suptitle(
@@ -256,7 +239,7 @@ def parallel_figure(
     """Parallel coordinates of the u2 terms of one group; the reduced set drawn thick."""
     rows = [i for i, name in enumerate(methods) if models.groups[name] == group]
     terms = normalised_terms(matrix[rows])
-    figure = _figure(10.0, 4.2 if len(objectives) <= 40 else 3.4)
+    figure = new_figure(10.0, 4.2 if len(objectives) <= 40 else 3.4)
     axes = figure.add_subplot()
     positions = np.arange(len(objectives))
     reduced = set(models.reduced) if group == 1 else set()

@@ -18,11 +18,11 @@ from typing import Any
 from dispeval_ros.core.measures import HIGHER_IS_BETTER, measure_unit
 from dispeval_ros.core.timing import TIMING_MEASURES
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.canvas import LINE_COLOURS, measure_label, new_figure, plain_numbers
 from dispeval_ros.report.latency import DELAY_LABEL, latency_label
 
 LATENCY_FIGURES = ("latency_accuracy.png", "delays.png")
 FRONT = "#1a9850"
-LINE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 
 
 def front_2d(
@@ -73,9 +73,7 @@ def latency_accuracy_figure(
     A panel: ``sequence``, ``criterion``, ``methods``, ``x``, ``y`` (per method) and
     ``first_group`` (the names ringed).
     """
-    from dispeval_ros.report.figures import _figure, _plain_numbers, measure_label
-
-    figure = _figure(5.2 * len(panels), 4.2)
+    figure = new_figure(5.2 * len(panels), 4.2)
     axes_list = figure.subplots(1, len(panels), squeeze=False)[0]
     x_higher = TIMING_MEASURES[latency].higher_is_better
     y_higher = measure in HIGHER_IS_BETTER
@@ -102,7 +100,7 @@ def latency_accuracy_figure(
                 axes.annotate(name, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=8)
         axes.set_xlabel(latency_label(latency))
         axes.set_ylabel(measure_label(measure, unit))
-        _plain_numbers(axes)
+        plain_numbers(axes)
         axes.set_title(f"{panel['sequence']} · {panel['criterion']}", fontsize=10, loc="left")
         axes.grid(True, alpha=0.3)
         axes.legend(fontsize=7, loc="best")
@@ -115,9 +113,8 @@ def delays_figure(panels: Sequence[Mapping[str, Any]], path: Path | None) -> Any
     """The delay of every frame per method, one panel per sequence (whole frame numbers)."""
     from matplotlib.ticker import MaxNLocator
 
-    from dispeval_ros.report.figures import _figure, _plain_numbers
 
-    figure = _figure(5.2 * len(panels), 3.6)
+    figure = new_figure(5.2 * len(panels), 3.6)
     axes_list = figure.subplots(1, len(panels), squeeze=False)[0]
     for axes, panel in zip(axes_list, panels, strict=True):
         for k, (method, rows) in enumerate(panel["delays"].items()):
@@ -127,7 +124,7 @@ def delays_figure(panels: Sequence[Mapping[str, Any]], path: Path | None) -> Any
         axes.xaxis.set_major_locator(MaxNLocator(integer=True))
         axes.set_xlabel("frame")
         axes.set_ylabel(DELAY_LABEL)
-        _plain_numbers(axes)
+        plain_numbers(axes)
         axes.set_title(str(panel["sequence"]), fontsize=10, loc="left")
         axes.grid(True, alpha=0.3)
         axes.legend(fontsize=7, loc="best", title="method", title_fontsize=7)

@@ -21,6 +21,7 @@ from dispeval_ros.core.objectives import EGOMOTION_OBJECTIVES
 from dispeval_ros.core.temporal import pair_unit
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.report.canvas import LINE_COLOURS, new_figure, plain_numbers
 from dispeval_ros.summary import SequenceSummary, summarize
 
 T = TypeVar("T")
@@ -149,8 +150,6 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
     """
     from matplotlib.ticker import MaxNLocator
 
-    from dispeval_ros.report.figures import _figure, _plain_numbers
-    from dispeval_ros.report.latency_figures import LINE_COLOURS
 
     panels = [
         (name, kind, block[f"{kind}_series"])
@@ -158,7 +157,7 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
         for kind in ("tepe", "residual")
         if block[f"{kind}_series"]
     ]
-    figure = _figure(5.2 * min(2, len(panels)), 3.4 * ((len(panels) + 1) // 2))
+    figure = new_figure(5.2 * min(2, len(panels)), 3.4 * ((len(panels) + 1) // 2))
     axes_list = figure.subplots((len(panels) + 1) // 2, min(2, len(panels)), squeeze=False)
     for axes, (name, kind, series) in zip(axes_list.ravel(), panels, strict=False):
         for k, (method, entry) in enumerate(series.items()):
@@ -170,7 +169,7 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
         axes.xaxis.set_major_locator(MaxNLocator(integer=True))
         axes.set_xlabel("frame (the later of each pair)")
         axes.set_ylabel(temporal["tepe_label"] if kind == "tepe" else temporal["residual_label"])
-        _plain_numbers(axes)
+        plain_numbers(axes)
         what = "TEPE" if kind == "tepe" else "ego-motion residual: temporal noise, no GT"
         axes.set_title(f"{name} · {criterion} · {what}", fontsize=9, loc="left")
         axes.grid(True, alpha=0.3)
