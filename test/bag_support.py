@@ -5,13 +5,21 @@ the same bag in the ROS 1 format, and what "the same database" means.
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dispeval_ros.offline.make_bag import GT_TOPIC, LEFT_INFO, RIGHT_INFO, disparity_topic
+from dispeval_ros.offline.make_bag import (
+    CAMERA_FRAME,
+    GT_TOPIC,
+    LEFT_INFO,
+    RIGHT_INFO,
+    START_NS,
+    disparity_topic,
+)
+from dispeval_ros.testbed import driving_setup
 
 METHODS = ("bm_fast", "sgbm", "sgbm_3way")
 
@@ -184,3 +192,29 @@ def noisy_biased_drive(root: Path, frames: int, width: int, height: int) -> list
         "--right-image", RIGHT_IMAGE, "--egomotion", "--criteria", "all",
         "--out", str(root / "res"), "--quiet",
     ]  # fmt: skip
+
+
+def rig_step(earlier: Any, later: Any) -> np.ndarray:
+    """The test-bed rig's left camera at ``later`` in its frame at ``earlier`` (4×4).
+
+    Written from the two optical centres, not from the package's ``rig_motion``: the world is
+    ``x`` right, ``y`` up, ``z`` forward, the camera ``x`` right, ``y`` down, ``z`` forward,
+    and the rig never turns, so the motion is a translation.
+    """
+    step = np.subtract(later.position, earlier.position)
+    motion = np.eye(4)
+    motion[:3, 3] = (step[0], -step[1], step[2])
+    return motion
+
+
+def drive_motion_lookup(
+    width: int, height: int, seed: int, fps: float = 10.0
+) -> Callable[[str, int, int], np.ndarray]:
+    """The exact motion of ``make-bag``'s synthetic drive as the pair stage looks it up."""
+    _, rig = driving_setup(width, height, fps, seed)
+
+    def motion(camera_frame: str, t0_ns: int, t1_ns: int) -> np.ndarray:
+        assert camera_frame == CAMERA_FRAME
+        return rig_step(*(rig.at((t - START_NS) / 1e9) for t in (t0_ns, t1_ns)))
+
+    return motion

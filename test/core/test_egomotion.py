@@ -13,6 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from bag_support import rig_step
 
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
@@ -172,10 +173,7 @@ def drive_motion(first: int, second: int) -> np.ndarray:
     down, ``z`` forward, and the rig never turns: the motion is a translation.
     """
     (_, a, _), (_, b, _) = drive_frame(first), drive_frame(second)
-    step = np.subtract(b.position, a.position)
-    motion = np.eye(4)
-    motion[:3, 3] = (step[0], -step[1], step[2])
-    return motion
+    return rig_step(a, b)
 
 
 def drive_camera() -> PinholeCamera:

@@ -14,25 +14,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_support import drive_motion_lookup
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import (
-    CAMERA_FRAME,
     GT_TOPIC,
     LEFT_IMAGE,
     LEFT_INFO,
     RIGHT_IMAGE,
     RIGHT_INFO,
-    START_NS,
     disparity_topic,
     estimates_from,
     synthetic_frames,
     write_bag,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
-from dispeval_ros.testbed import driving_setup
 from dispeval_ros.testbed.methods import default_methods
 
 FRAMES, WIDTH, HEIGHT, SEED = 5, 620, 188, 4
@@ -68,16 +66,6 @@ def rows(folder: Path) -> list[tuple]:
     return found
 
 
-def exact_motion(camera_frame: str, t0_ns: int, t1_ns: int) -> np.ndarray:
-    """The pose of the left camera at t1 in its frame at t0 (the rig never turns)."""
-    assert camera_frame == CAMERA_FRAME
-    _, rig = driving_setup(WIDTH, HEIGHT, 10.0, SEED)
-    a, b = (rig.at((t - START_NS) / 1e9).position for t in (t0_ns, t1_ns))
-    motion = np.eye(4)
-    motion[:3, 3] = (b[0] - a[0], a[1] - b[1], b[2] - a[2])
-    return motion
-
-
 def test_the_residual_from_the_bags_tf_is_that_of_the_exact_motion_in_any_units(
     drive: Path, tmp_path: Path
 ) -> None:
@@ -99,7 +87,7 @@ def test_the_residual_from_the_bags_tf_is_that_of_the_exact_motion_in_any_units(
     )  # fmt: skip
     core = EvaluationCore(config)
     assert core.pairs is not None
-    core.pairs.motion = exact_motion  # instead of the bag's /tf
+    core.pairs.motion = drive_motion_lookup(WIDTH, HEIGHT, SEED)  # instead of the bag's /tf
     exact = []
     topics = [t for t in config.topics if not t.startswith("/tf")]
     with BagSource(drive) as source:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bag_support import drive_motion_lookup
 
 from dispeval_ros.core.egomotion import PinholeCamera, egomotion_residual, prepare_frame
 from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GroundTruthFree
@@ -44,7 +45,6 @@ from dispeval_ros.stream.vectors import (
     result_statuses,
     scores_from_status,
 )
-from dispeval_ros.testbed import driving_setup
 from dispeval_ros.testbed.methods import default_methods
 
 FRAMES = 4
@@ -76,15 +76,8 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root / "drive"
 
 
-def drive_motion(camera_frame: str, t0_ns: int, t1_ns: int) -> np.ndarray:
-    """The pose of the left camera at t1 in its frame at t0 (the rig never turns)."""
-    assert camera_frame == CAMERA_FRAME
-    _, rig = driving_setup(WIDTH, HEIGHT, 10.0, SEED)
-    a, b = (rig.at((t - START_NS) / 1e9).position for t in (t0_ns, t1_ns))
-    step = np.subtract(b, a)
-    motion = np.eye(4)
-    motion[:3, 3] = (step[0], -step[1], step[2])
-    return motion
+drive_motion = drive_motion_lookup(WIDTH, HEIGHT, SEED)
+"""The exact motion of the drive (the pair stage's lookup)."""
 
 
 def run(bag: Path, motion: Any, temporal: str | None = None) -> list[FrameResult]:
