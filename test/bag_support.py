@@ -4,6 +4,7 @@ the same bag in the ROS 1 format, and what "the same database" means.
 
 from __future__ import annotations
 
+import shutil
 import sqlite3
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -18,6 +19,7 @@ from dispeval_ros.offline.make_bag import (
     RIGHT_INFO,
     START_NS,
     disparity_topic,
+    synthetic_frames,
 )
 from dispeval_ros.testbed import driving_setup
 
@@ -218,3 +220,37 @@ def drive_motion_lookup(
         return rig_step(*(rig.at((t - START_NS) / 1e9) for t in (t0_ns, t1_ns)))
 
     return motion
+
+
+def numpy_pair_errors(
+    root: Path, method: str, frames: int, width: int, height: int, seed: int = 4
+) -> list[np.ndarray]:
+    """Per pair of consecutive frames of the synthetic drive, TEPE's errors from its definition.
+
+    ``|(E_t − E_t+1) − (D_t − D_t+1)|`` at the same pixel, over the pixels with GT in both
+    frames, from the maps saved as ``root/method/NNNNNN.npy`` (what the bag was made of).
+    """
+    gts = [f.gt for f in synthetic_frames(frames, width, height, 10.0, seed=seed)]
+    errors = []
+    for index in range(1, frames):
+        gt0, gt1 = (np.asarray(g, dtype=np.float64) for g in (gts[index - 1], gts[index]))
+        est0 = np.load(root / method / f"{index - 1:06d}.npy").astype(np.float64)
+        est1 = np.load(root / method / f"{index:06d}.npy").astype(np.float64)
+        with np.errstate(invalid="ignore"):
+            both = np.isfinite(gt0) & (gt0 > 0) & np.isfinite(gt1) & (gt1 > 0)
+            errors.append(np.abs((est0 - est1) - (gt0 - gt1))[both])
+    return errors
+
+
+def as_written_before(out: Path, old: Path, *tables: str) -> None:
+    """Copy the results folder ``out`` to ``old`` as a database written before ``tables`` existed.
+
+    Its report page is removed, so the caller's ``dispeval report`` writes it anew.
+    """
+    shutil.copytree(out, old)
+    connection = sqlite3.connect(old / "results.sqlite")
+    for table in tables:
+        connection.execute(f"DROP TABLE {table}")
+    connection.commit()
+    connection.close()
+    (old / "report.html").unlink()

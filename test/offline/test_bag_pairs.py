@@ -11,13 +11,11 @@ import json
 import sqlite3
 from pathlib import Path
 
-import numpy as np
 import pytest
-from bag_support import fast_rough_bag
+from bag_support import fast_rough_bag, numpy_pair_errors
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.offline.make_bag import synthetic_frames
 from dispeval_ros.summary import objective_table
 
 FRAMES = 8
@@ -47,20 +45,9 @@ def pair_rows(folder: Path) -> list[tuple]:
 
 def numpy_tepe(root: Path, method: str) -> tuple[int, float]:
     """Pooled over the drive's pairs: (pixel pairs, tepe), from the maps the bag was made of."""
-    gts = [
-        np.asarray(frame.gt, dtype=np.float32)
-        for frame in synthetic_frames(FRAMES, 192, 64, 10.0, seed=4)
-    ]
-    total, count = 0.0, 0
-    for index in range(1, FRAMES):
-        gt0, gt1 = (np.asarray(g, dtype=np.float64) for g in (gts[index - 1], gts[index]))
-        est0 = np.load(root / method / f"{index - 1:06d}.npy").astype(np.float64)
-        est1 = np.load(root / method / f"{index:06d}.npy").astype(np.float64)
-        with np.errstate(invalid="ignore"):
-            both = np.isfinite(gt0) & (gt0 > 0) & np.isfinite(gt1) & (gt1 > 0)
-            error = np.abs((est0 - est1) - (gt0 - gt1))[both]
-        total += float(error.sum())
-        count += int(both.sum())
+    errors = numpy_pair_errors(root, method, FRAMES, 192, 64)
+    count = sum(error.size for error in errors)
+    total = sum(float(error.sum()) for error in errors)
     return count, total / count
 
 

@@ -9,14 +9,12 @@ recorded" for a database written before arrival times were.
 from __future__ import annotations
 
 import json
-import shutil
-import sqlite3
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from bag_support import NOISE, fast_rough_bag
+from bag_support import NOISE, as_written_before, fast_rough_bag
 from test_report import browser, make_small_store, open_report  # noqa: F401  (browser fixture)
 
 from dispeval_ros.cli.main import main
@@ -56,12 +54,7 @@ def ranked(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     assert main([*args, "--objective-measures", *OBJECTIVES]) == 0
     assert main(["report", str(out), "--png", str(root / "png"), "--quiet"]) == 0
     old = root / "old"
-    shutil.copytree(out, old)
-    connection = sqlite3.connect(old / "results.sqlite")  # as written before arrival times were
-    connection.execute(f"DROP TABLE {TIMING_TABLE}")
-    connection.commit()
-    connection.close()
-    (old / "report.html").unlink()
+    as_written_before(out, old, TIMING_TABLE)  # as written before arrival times were
     assert main(["report", str(old), "--png", str(root / "old_png"), "--quiet"]) == 0
     return {
         "root": root,

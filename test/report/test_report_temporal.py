@@ -10,19 +10,16 @@ database written before the pairs tables were shows nothing of it (page and PNGs
 from __future__ import annotations
 
 import json
-import shutil
-import sqlite3
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from bag_support import NOISY_BIASED, noisy_biased_drive
+from bag_support import NOISY_BIASED, as_written_before, noisy_biased_drive, numpy_pair_errors
 from test_report import browser, open_report  # noqa: F401  (browser fixture)
 
 from dispeval_ros.cli.main import main
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.offline.make_bag import synthetic_frames
 from dispeval_ros.report.figures import FIGURES
 from dispeval_ros.report.temporal import (
     NOISE_NOTE,
@@ -47,13 +44,7 @@ def paired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     assert main([*args, "--temporal"]) == 0
     assert main(["report", str(out), "--png", str(root / "png"), "--quiet"]) == 0
     old = root / "old"
-    shutil.copytree(out, old)
-    connection = sqlite3.connect(old / "results.sqlite")  # as written before pairs were
-    connection.execute("DROP TABLE pairs")
-    connection.execute("DROP TABLE motion_pairs")
-    connection.commit()
-    connection.close()
-    (old / "report.html").unlink()
+    as_written_before(out, old, "pairs", "motion_pairs")
     assert main(["report", str(old), "--png", str(root / "old_png"), "--quiet"]) == 0
     return {
         "root": root,
@@ -67,16 +58,7 @@ def paired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 def numpy_tepe(root: Path, method: str) -> list[float]:
     """Per pair of consecutive frames, TEPE from its definition (pixels with GT in both)."""
-    gts = [f.gt for f in synthetic_frames(FRAMES, WIDTH, HEIGHT, 10.0, seed=4)]
-    values = []
-    for index in range(1, FRAMES):
-        gt0, gt1 = (np.asarray(g, dtype=np.float64) for g in (gts[index - 1], gts[index]))
-        est0 = np.load(root / method / f"{index - 1:06d}.npy").astype(np.float64)
-        est1 = np.load(root / method / f"{index:06d}.npy").astype(np.float64)
-        with np.errstate(invalid="ignore"):
-            both = np.isfinite(gt0) & (gt0 > 0) & np.isfinite(gt1) & (gt1 > 0)
-            values.append(float(np.abs((est0 - est1) - (gt0 - gt1))[both].mean()))
-    return values
+    return [float(e.mean()) for e in numpy_pair_errors(root, method, FRAMES, WIDTH, HEIGHT)]
 
 
 def test_the_pooled_numbers_are_summary_jsons(paired: dict[str, Any]) -> None:
