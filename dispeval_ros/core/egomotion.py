@@ -247,6 +247,22 @@ class TemporalSums:
             self.offsets + other.offsets,
         )
 
+    @classmethod
+    def of_pair(
+        cls, criteria: Sequence[str], thresholds: Sequence[float], sums: object, offset: float
+    ) -> TemporalSums:
+        """One pair's ego-motion sums from the parts they are stored as (a row, a status's keys).
+
+        Raises ValueError without a criterion or when the sums are not criteria × (base
+        columns + thresholds).
+        """
+        names, levels = tuple(criteria), tuple(float(t) for t in thresholds)
+        values = np.array(sums, dtype=np.float64)
+        width = len(BASE_COLUMNS) + len(levels)
+        if not names or values.size != len(names) * width:
+            raise ValueError(f"{len(names)} criteria, {values.size} sums of {width} columns")
+        return cls("egomotion", names, levels, values.reshape(len(names), width), (offset,))
+
     def column(self, criterion: str, name: str) -> float:
         """One sum of one criterion."""
         return float(self.sums[self.criteria.index(criterion), self.columns.index(name)])

@@ -178,6 +178,33 @@ class PairScores(ByCriterion):
         }
 
     @classmethod
+    def restored(
+        cls,
+        criteria: Sequence[str],
+        sums: object,
+        thresholds: object,
+        policy: str,
+        preset: str,
+    ) -> PairScores:
+        """One pair's scores from the parts it is stored as (a database row, a status's keys).
+
+        Raises ValueError when the parts do not fit together (no criterion, an unknown preset,
+        sums that are not criteria × pair fields): the caller names what was damaged.
+        """
+        names = tuple(criteria)
+        values = np.array(sums, dtype=np.float64)
+        if not names or preset not in PRESETS or values.size != len(names) * PAIR_COUNT:
+            raise ValueError(f"{len(names)} criteria, {values.size} sums, preset {preset!r}")
+        return cls(
+            criteria=names,
+            measures=PRESETS[preset].measures,
+            sums=values.reshape(len(names), PAIR_COUNT),
+            thresholds=np.array(thresholds, dtype=np.float64),
+            policy=policy,
+            preset=PRESETS[preset],
+        )
+
+    @classmethod
     def combine(cls, parts: Sequence[PairScores]) -> PairScores:
         """Scores of several frame pairs together: sums of sums."""
         first = first_of_combinable(parts, "pair scores")

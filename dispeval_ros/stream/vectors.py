@@ -247,7 +247,7 @@ def motion_values(
 
 def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, TemporalSums] | None:
     """``(earlier frame's stamp, ego-motion sums)`` of a status with them, else None."""
-    from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
+    from dispeval_ros.core.egomotion import TemporalSums
 
     table = dict(values)
     if MOTION_META[1] not in table:
@@ -256,14 +256,12 @@ def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, Temporal
     keys = [k for k, _ in values if k.startswith(MOTION_PREFIX) and k.endswith(suffix)]
     criteria = [k[start : -len(suffix)] for k in keys]
     try:
-        thresholds = tuple(float(t) for t in table[MOTION_META[0]].split())
+        thresholds = [float(t) for t in table[MOTION_META[0]].split()]
         sums = np.array([[float(v) for v in table[k].split()] for k in keys])
         offset, previous = float(table[MOTION_META[1]]), int(table[PAIR_PREVIOUS_KEY])
-        if sums.shape != (len(criteria), len(BASE_COLUMNS) + len(thresholds)):
-            raise ValueError(sums.shape)
+        return previous, TemporalSums.of_pair(criteria, thresholds, sums, offset)
     except (KeyError, ValueError):
         raise InputError("the diagnostic status has malformed ego-motion keys") from None
-    return previous, TemporalSums("egomotion", tuple(criteria), thresholds, sums, (offset,))
 
 
 def read_pairs(
@@ -285,8 +283,7 @@ def read_pairs(
 
 def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores] | None:
     """``(earlier frame's stamp, pair scores)`` of a status with a pair, else None."""
-    from dispeval_ros.core.kernels.temporal import PAIR_COUNT
-    from dispeval_ros.core.temporal import PRESETS, PairScores
+    from dispeval_ros.core.temporal import PairScores
 
     table = dict(values)
     if PAIR_PREVIOUS_KEY not in table or not any(key in table for key in PAIR_META):
@@ -299,19 +296,10 @@ def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores
             [[float(v) for v in table[f"{PAIR_PREFIX}{c}{suffix}"].split()] for c in criteria]
         )
         previous = int(table[PAIR_PREVIOUS_KEY])
-        if preset not in PRESETS or sums.shape != (len(criteria), PAIR_COUNT):
-            raise ValueError(preset)
+        levels = [float(t) for t in thresholds.split()]
+        return previous, PairScores.restored(criteria, sums, levels, policy, preset)
     except (KeyError, ValueError):
         raise InputError("the diagnostic status has malformed temporal pair keys") from None
-    scores = PairScores(
-        criteria=tuple(criteria),
-        measures=PRESETS[preset].measures,
-        sums=sums,
-        thresholds=np.array([float(t) for t in thresholds.split()]),
-        policy=policy,
-        preset=PRESETS[preset],
-    )
-    return previous, scores
 
 
 def result_statuses(

@@ -11,11 +11,13 @@ import sqlite3
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
 from dispeval_ros.core.kernels.temporal import PAIR_COUNT
 from dispeval_ros.core.records import FrameMotion, FramePair
 from dispeval_ros.core.temporal import PRESETS, PairScores
+from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
 
 CRITERIA = ("all", "interior")
@@ -94,3 +96,38 @@ def test_merge_keeps_the_pairs_and_drops_them_when_a_part_has_none(tmp_path: Pat
                 mixed.add_results(other)
         assert mixed.motion_pairs("north") is None  # not the residual of a part of the run
         assert mixed.pairs("north") is not None
+
+
+def test_a_damaged_pair_or_motion_row_is_one_line_naming_the_database(tmp_path: Path) -> None:
+    write(tmp_path, "drive", range(2)).close()
+    connection = sqlite3.connect(tmp_path / "results.sqlite")
+    connection.execute("UPDATE pairs SET sums = ? WHERE stamp = 100", (b"\0" * 8,))
+    connection.execute("UPDATE motion_pairs SET criteria = '[]' WHERE stamp = 200")
+    connection.commit()
+    connection.close()
+    with ResultsStore.open(tmp_path) as store:
+        with pytest.raises(InputError, match=r"results\.sqlite: a stored pair row of sgbm is"):
+            store.pairs("drive")
+        with pytest.raises(InputError, match=r"a stored ego-motion row of sgbm is damaged"):
+            store.motion_pairs("drive")
+
+
+def test_restored_parts_that_do_not_fit_are_refused() -> None:
+    good = pair(0)
+    names, sums, levels = good.criteria, good.sums, good.thresholds
+    again = PairScores.restored(names, sums.ravel(), levels, good.policy, good.preset.name)
+    assert again.to_dict() == good.to_dict()
+    for bad in [((), sums[:0], "dispeval"), (names, sums[:, 1:], "dispeval"), (names, sums, "x")]:
+        with pytest.raises(ValueError, match=r"criteria, \d+ sums, preset"):
+            PairScores.restored(bad[0], bad[1], levels, "interpolate", bad[2])
+    moved = motion(1)
+    restored = TemporalSums.of_pair(CRITERIA, THRESHOLDS, moved.sums.ravel(), 0.01)
+    assert (restored.criteria, restored.thresholds, restored.offsets) == (
+        CRITERIA,
+        THRESHOLDS,
+        (0.01,),
+    )
+    assert np.array_equal(restored.sums, moved.sums)
+    for criteria, values in [((), moved.sums[:0]), (CRITERIA, moved.sums[:, 1:])]:
+        with pytest.raises(ValueError, match=r"criteria, \d+ sums of \d+ columns"):
+            TemporalSums.of_pair(criteria, THRESHOLDS, values, 0.01)

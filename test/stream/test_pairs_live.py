@@ -11,14 +11,23 @@ import pytest
 from sample_feed import sample_bag, sample_config, topic_args
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
+from dispeval_ros.core.kernels.temporal import PAIR_COUNT
+from dispeval_ros.core.temporal import PRESETS, PairScores
+from dispeval_ros.errors import InputError
 from dispeval_ros.io.bags import BagSource
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.stream.core import FrameResult
 from dispeval_ros.stream.runner import LiveEvaluator
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
 from dispeval_ros.stream.vectors import (
+    MOTION_SUMS_KEY,
     PAIR_PREFIX,
+    PAIR_SUMS_KEY,
+    motion_from_status,
+    motion_values,
     pair_from_status,
+    pair_values,
     result_statuses,
     scores_from_status,
 )
@@ -74,3 +83,27 @@ def test_statuses_carry_the_pairs_and_the_summarizer_pools_those_of_dispeval_bag
         assert live_pairs[method].pairs == pooled.pairs > 0
         assert np.array_equal(live_pairs[method].sums, pooled.sums)
         assert live_pairs[method]["all"]["tepe"] == pytest.approx(pooled["all"]["tepe"], rel=0)
+
+
+def test_a_status_whose_pair_or_residual_keys_do_not_fit_is_one_line() -> None:
+    rng = np.random.default_rng(0)
+    preset = PRESETS["dispeval"]
+    thresholds = np.array([1.0, 0.5, 2.0, 4.0, np.inf, np.inf])[: PAIR_COUNT - 5]
+    sums = rng.integers(1, 1000, (1, PAIR_COUNT)).astype(np.float64)
+    pair = PairScores(("all",), preset.measures, sums, thresholds, "interpolate", preset)
+    width = len(BASE_COLUMNS) + 2
+    moved = TemporalSums("egomotion", ("all",), (0.5, 2.0), rng.random((1, width)), (0.1,))
+    values = [*pair_values(5, pair), *motion_values(5, moved, with_previous=False)]
+    previous, back = pair_from_status(values) or (None, None)
+    assert previous == 5
+    assert back is not None
+    assert np.array_equal(back.sums, pair.sums)
+    assert motion_from_status(values) is not None
+    for cut, what in [(PAIR_SUMS_KEY, "temporal pair"), (MOTION_SUMS_KEY, "ego-motion")]:
+        damaged = [(k, " ".join(v.split()[1:]) if k.endswith(cut) else v) for k, v in values]
+        read = pair_from_status if what == "temporal pair" else motion_from_status
+        with pytest.raises(InputError, match=f"malformed {what} keys"):
+            read(damaged)
+        no_criteria = [(k, v) for k, v in values if not k.endswith(cut)]
+        with pytest.raises(InputError, match=f"malformed {what} keys"):
+            read(no_criteria)

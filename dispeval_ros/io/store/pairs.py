@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from dispeval_ros.core.egomotion import BASE_COLUMNS, TemporalSums
-from dispeval_ros.core.kernels.temporal import PAIR_COUNT
+from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.records import FrameMotion, FramePair
-from dispeval_ros.core.temporal import PRESETS, PairScores
+from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store.schema import _BLOB
 
@@ -60,18 +59,16 @@ def pair_series(
     )
     found: dict[str, list[tuple[int, PairScores]]] = {}
     for stamp, method, criteria, thresholds, policy, preset, blob in rows:
-        names = tuple(json.loads(criteria))
-        sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
-        if preset not in PRESETS or sums.size != len(names) * PAIR_COUNT:
-            raise InputError(f"{where}: a stored pair row of {method} is damaged")
-        scores = PairScores(
-            criteria=names,
-            measures=PRESETS[preset].measures,
-            sums=sums.reshape(len(names), PAIR_COUNT),
-            thresholds=np.frombuffer(thresholds, dtype=_BLOB).astype(np.float64),
-            policy=policy,
-            preset=PRESETS[preset],
-        )
+        try:
+            scores = PairScores.restored(
+                json.loads(criteria),
+                np.frombuffer(blob, dtype=_BLOB),
+                np.frombuffer(thresholds, dtype=_BLOB),
+                policy,
+                preset,
+            )
+        except ValueError:
+            raise InputError(f"{where}: a stored pair row of {method} is damaged") from None
         found.setdefault(method, []).append((int(stamp), scores))
     return found
 
@@ -81,8 +78,7 @@ def read_pairs(
 ) -> dict[str, PairScores]:
     """Per method (in ``methods``' order, then first seen), the sequence's pairs pooled."""
     found = pair_series(connection, where, sequence)
-    order = [m for m in methods if m in found] + [m for m in found if m not in methods]
-    return {method: PairScores.combine([p for _, p in found[method]]) for method in order}
+    return {m: PairScores.combine([p for _, p in found[m]]) for m in _in_order(found, methods)}
 
 
 def motion_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[tuple[object, ...]]:
@@ -120,13 +116,13 @@ def motion_series(
     )
     found: dict[str, list[tuple[int, TemporalSums]]] = {}
     for stamp, method, criteria, thresholds, offset, blob in rows:
-        names = tuple(json.loads(criteria))
-        levels = tuple(np.frombuffer(thresholds, dtype=_BLOB).astype(float).tolist())
-        sums = np.frombuffer(blob, dtype=_BLOB).astype(np.float64)
-        width = len(BASE_COLUMNS) + len(levels)
-        if sums.size != len(names) * width:
-            raise InputError(f"{where}: a stored ego-motion row of {method} is damaged")
-        one = TemporalSums("egomotion", names, levels, sums.reshape(len(names), width), (offset,))
+        levels = np.frombuffer(thresholds, dtype=_BLOB).tolist()
+        try:
+            one = TemporalSums.of_pair(
+                json.loads(criteria), levels, np.frombuffer(blob, dtype=_BLOB), offset
+            )
+        except ValueError:
+            raise InputError(f"{where}: a stored ego-motion row of {method} is damaged") from None
         found.setdefault(method, []).append((int(stamp), one))
     return found
 
@@ -136,8 +132,12 @@ def read_motion(
 ) -> dict[str, tuple[int, TemporalSums]]:
     """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
     found = motion_series(connection, where, sequence)
-    order = [m for m in methods if m in found] + [m for m in found if m not in methods]
-    return {method: (len(found[method]), _total([s for _, s in found[method]])) for method in order}
+    return {m: (len(found[m]), _total([s for _, s in found[m]])) for m in _in_order(found, methods)}
+
+
+def _in_order(found: Mapping[str, object], methods: Sequence[str]) -> list[str]:
+    """The methods ``found`` holds: in ``methods``' order, then the others as first seen."""
+    return [m for m in methods if m in found] + [m for m in found if m not in methods]
 
 
 def _total(parts: Sequence[TemporalSums]) -> TemporalSums:
