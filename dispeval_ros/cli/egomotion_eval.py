@@ -26,6 +26,8 @@ import dataclasses
 import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import reduce
+from operator import add
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -456,7 +458,5 @@ def _pairs(run: list[int], a: int, b: int) -> bool:
 
 def _pooled(names: Sequence[str], runs: list[list[int]], sums: list[TemporalSums]) -> MethodMotion:
     """A method's pairs pooled by their sums."""
-    pooled = None
-    for one in sums:
-        pooled = one if pooled is None else pooled + one
+    pooled = reduce(add, sums) if sums else None
     return MethodMotion([[names[i] for i in run] for run in runs], len(sums), pooled)

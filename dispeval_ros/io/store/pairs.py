@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 import sqlite3
 from collections.abc import Iterable, Mapping, Sequence
+from functools import reduce
+from operator import add
 
 import numpy as np
 
@@ -132,16 +134,11 @@ def read_motion(
 ) -> dict[str, tuple[int, TemporalSums]]:
     """Per method: its pairs in the sequence and their ego-motion residual sums pooled."""
     found = motion_series(connection, where, sequence)
-    return {m: (len(found[m]), _total([s for _, s in found[m]])) for m in _in_order(found, methods)}
+    return {
+        m: (len(found[m]), reduce(add, [s for _, s in found[m]])) for m in _in_order(found, methods)
+    }
 
 
 def _in_order(found: Mapping[str, object], methods: Sequence[str]) -> list[str]:
     """The methods ``found`` holds: in ``methods``' order, then the others as first seen."""
     return [m for m in methods if m in found] + [m for m in found if m not in methods]
-
-
-def _total(parts: Sequence[TemporalSums]) -> TemporalSums:
-    total = parts[0]
-    for part in parts[1:]:
-        total = total + part
-    return total
