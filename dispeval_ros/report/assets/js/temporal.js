@@ -1,6 +1,20 @@
   // ---- temporal consistency: pooled TEPE, the ego-motion residual (noise), per pair of frames
   // (report/temporal.py builds the data: summary.json's temporal and egomotion entries)
 
+  /* One table row per method and criterion: method, criterion, pairs, the count, each column. */
+  function methodRows(entries, count, columns) {
+    const rows = [];
+    for (const method of Object.keys(entries)) {
+      const entry = entries[method];
+      for (const criterion of Object.keys(entry.criteria)) {
+        const values = entry.criteria[criterion];
+        const row = [method, criterion, entry.pairs, values[count]];
+        rows.push(row.concat(columns.map((q) => own(values, q))));
+      }
+    }
+    return rows;
+  }
+
   /* The section, or nothing where no pair is recorded (an older database: the page as before). */
   function buildTemporalView() {
     const info = D.raw.temporal;
@@ -13,16 +27,7 @@
       D.temporalState.sequences[name] = shown;
       children.push(el('h3', { text: name }));
       if (block.temporal) {
-        const measures = block.tepe_measures;
-        for (const method of Object.keys(block.temporal)) {
-          const entry = block.temporal[method];
-          for (const criterion of Object.keys(entry.criteria)) {
-            const values = entry.criteria[criterion];
-            const row = [method, criterion, entry.pairs, values.n_pair];
-            for (const q of measures) row.push(own(values, q));
-            shown.tepe.push(row);
-          }
-        }
+        shown.tepe = methodRows(block.temporal, 'n_pair', block.tepe_measures);
         children.push(el('p', { className: 'muted small', text: info.tepe_note +
           (info.preset ? ' (preset ' + info.preset + ')' : '') }));
         children.push(simpleTable(['method', 'criterion', 'pairs', 'n_pair', ...block.tepe_headers],
@@ -30,15 +35,7 @@
       }
       if (block.egomotion) {
         const columns = block.residual_columns;
-        for (const method of Object.keys(block.egomotion)) {
-          const entry = block.egomotion[method];
-          for (const criterion of Object.keys(entry.criteria)) {
-            const values = entry.criteria[criterion];
-            const row = [method, criterion, entry.pairs, values.n_residual];
-            for (const q of columns) row.push(own(values, q));
-            shown.residual.push(row);
-          }
-        }
+        shown.residual = methodRows(block.egomotion, 'n_residual', columns);
         children.push(el('p', { className: 'muted small noise-note', text: info.noise_note }));
         children.push(simpleTable(['method', 'criterion (noise, not accuracy)', 'pairs',
           'n_residual'].concat(columns.map(residualHeader)), shown.residual.map(cells),
