@@ -45,7 +45,8 @@ from dispeval_ros.core.egomotion import (
 from dispeval_ros.testbed import driving_setup, driving_world_at, render_stereo
 from dispeval_ros.testbed.scene import KITTI_HEIGHT, KITTI_WIDTH
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
+TESTS = Path(__file__).resolve().parents[1] / "test"
+sys.path[:0] = [str(TESTS / "core"), str(TESTS)]  # the tests' shared support modules live in test/
 from test_egomotion import numpy_residual
 
 WINDOW = 5
