@@ -15,8 +15,9 @@ the same statuses and sums (checked first); numpy is ``numpy_residual`` of
 - ``prepare``: one frame's checks and edge mask (once per frame in a stream: each frame is
   the target of one pair and the source of the next); numpy: 4-neighbour jumps and a 3×3
   dilation by shifts;
-- ``flicker (5 frames)``: a window of five frames, per frame (add) and the window's sums;
-  numpy: ``std(ddof=1)`` over the stack and the same masks.
+- ``flicker (5 frames)``: a window of five frames with their left images, per frame (add)
+  and the window's sums; numpy: ``numpy_flicker`` of the same test file (``std(ddof=1)`` over
+  the stack, the same masks, the same per-cell sums).
 
 The best and the median of ``--repeat`` runs of CPU time (``process_time``: a shared
 machine's other work is not counted, its contention for the core is) are printed, with the
@@ -39,15 +40,16 @@ from dispeval_ros.core.egomotion import (
     EgoMotionOptions,
     FlickerWindow,
     PinholeCamera,
+    TemporalSums,
     egomotion_residual,
     prepare_frame,
 )
 from dispeval_ros.testbed import driving_setup, driving_world_at, render_stereo
 from dispeval_ros.testbed.scene import KITTI_HEIGHT, KITTI_WIDTH
 
-TESTS = Path(__file__).resolve().parents[1] / "test"
-sys.path[:0] = [str(TESTS / "core"), str(TESTS)]  # the tests' shared support modules live in test/
-from test_egomotion import numpy_residual
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # bag_support, ...
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
+from test_egomotion import numpy_edges, numpy_flicker, numpy_residual
 
 WINDOW = 5
 
@@ -61,33 +63,6 @@ def timed(run: Callable[[], object], repeat: int) -> tuple[float, float]:
         run()
         times.append(time.process_time() - start)
     return 1e3 * min(times), 1e3 * float(np.median(times))
-
-
-def numpy_edges(disparity: np.ndarray, gap: float = 2.0) -> np.ndarray:
-    """Both ends of every 4-neighbour jump > ``gap`` between valid pixels, dilated 3×3."""
-    with np.errstate(invalid="ignore"):
-        across = np.abs(np.diff(disparity, axis=1)) > gap
-        down = np.abs(np.diff(disparity, axis=0)) > gap
-    jumps = np.zeros(disparity.shape, bool)
-    jumps[:, 1:] |= across
-    jumps[:, :-1] |= across
-    jumps[1:] |= down
-    jumps[:-1] |= down
-    padded = np.pad(jumps, 1)
-    out = np.zeros_like(jumps)
-    height, width = jumps.shape
-    for dy in range(3):
-        for dx in range(3):
-            out |= padded[dy : dy + height, dx : dx + width]
-    return out
-
-
-def numpy_flicker(stack: np.ndarray, fb: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel spread of disparity and depth over the window, and the counted pixels."""
-    missing = ~(stack > 0).all(axis=0)
-    mean = stack.mean(axis=0)
-    counted = ~missing & ~numpy_edges(np.where(missing, np.nan, mean))
-    return np.std(stack, axis=0, ddof=1), np.std(fb / stack, axis=0, ddof=1) * counted
 
 
 def main() -> None:
@@ -116,7 +91,7 @@ def main() -> None:
     sums, status, _ = numpy_residual(source, target, motion, camera, plain, 0.0)
     if not (np.array_equal(status, result.maps[0]) and np.allclose(sums, result.sums)):
         raise SystemExit("the numba and numpy residuals differ")
-    if not np.array_equal(numpy_edges(source.disparity), source.edges):
+    if not np.array_equal(numpy_edges(source.disparity, 2.0, 3), source.edges):
         raise SystemExit("the numba and numpy edge masks differ")
     offset = egomotion_residual(source, target, motion, camera, options=fitted).offsets[0]
     summary = result.summary("all")
@@ -126,14 +101,21 @@ def main() -> None:
         f"counted, mean |r| {summary['mean_abs']:.3f} px, fitted offset {offset:+.4f} px"
     )
 
-    stack = np.stack(estimates)
-    window_frames = [prepare_frame(e) for e in estimates]
+    window_frames = [prepare_frame(e, f.left) for e, f in zip(estimates, frames, strict=True)]
 
-    def numba_flicker() -> None:
+    def numba_flicker(keep_maps: bool = False) -> TemporalSums:
         window = FlickerWindow(camera.camera)
         for frame in window_frames:
             window.add(frame)
-        window.sums()
+        return window.sums(keep_maps=keep_maps)
+
+    spread = numba_flicker(keep_maps=True)
+    numpy_sums, numpy_status, _ = numpy_flicker(window_frames, camera.camera, EgoMotionOptions())
+    if not (
+        np.array_equal(numpy_status, spread.maps[0])
+        and np.allclose(numpy_sums, spread.sums, rtol=1e-5, atol=1e-4)
+    ):
+        raise SystemExit("the numba and numpy flicker differ")
 
     cases = [
         (
@@ -151,13 +133,13 @@ def main() -> None:
         (
             "prepare",
             lambda: prepare_frame(estimates[0], frames[0].left),
-            lambda: numpy_edges(np.where(estimates[0] > 0, estimates[0], np.nan)),
+            lambda: numpy_edges(np.where(estimates[0] > 0, estimates[0], np.nan), 2.0, 3),
             1,
         ),
         (
             f"flicker ({WINDOW} frames)",
             numba_flicker,
-            lambda: numpy_flicker(stack, camera.camera.fb),
+            lambda: numpy_flicker(window_frames, camera.camera, EgoMotionOptions()),
             WINDOW,
         ),
     ]

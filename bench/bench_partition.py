@@ -24,8 +24,8 @@ from bench_scoring import CRITERIA, run_on_frames, timed
 
 from dispeval_ros import Camera, Evaluator
 
-TESTS = Path(__file__).resolve().parents[1] / "test"
-sys.path[:0] = [str(TESTS / "core"), str(TESTS)]  # the tests' shared support modules live in test/
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # bag_support, ...
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
 from test_partition_reference import numpy_partition
 
 ROUNDS = 7

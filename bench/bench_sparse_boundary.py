@@ -24,8 +24,8 @@ import dispeval_ros
 from dispeval_ros.core import criteria
 from dispeval_ros.io import load_scene
 
-TESTS = Path(__file__).resolve().parents[1] / "test"
-sys.path[:0] = [str(TESTS / "core"), str(TESTS)]  # the tests' shared support modules live in test/
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # bag_support, ...
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "core"))
 from test_partition_reference import numpy_sparse_boundary
 
 LIDAR_SCENES = ("kitti2015-with-velodyne", "stereo-rcnn-demo")

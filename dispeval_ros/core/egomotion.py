@@ -308,12 +308,20 @@ def _buffers(shape: tuple[int, int]) -> tuple[np.ndarray, ...]:
     return held
 
 
+def _row_maps(width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Status and residual maps of one row, for a kernel that need not keep the whole maps."""
+    return (np.empty((1, width), np.int8), *np.empty((2, 1, width), np.float32))
+
+
 def _cells(
-    partition: crit.Partition | None, shape: tuple[int, int]
+    partition: crit.Partition | None, shape: tuple[int, int], rows: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-    """Cells, membership and criterion names (``all``: every pixel, without a partition)."""
+    """Cells, membership and criterion names (``all``: every pixel, without a partition).
+
+    ``rows=1``: without a partition, one row of cells that the kernel uses for every row.
+    """
     if partition is None:
-        return np.zeros(shape, np.int32), np.ones((1, 1), bool), ("all",)
+        return np.zeros((rows or shape[0], shape[1]), np.int32), np.ones((1, 1), bool), ("all",)
     if partition.shape != shape:
         raise ShapeMismatchError(
             f"the criteria are {crit.size_text(partition.shape)} but the estimates are "
@@ -345,9 +353,10 @@ def egomotion_residual(
     shape = _same_size(source, target)
     rt = np.ascontiguousarray(invert_rigid(rigid_motion(motion))[:3])
     geo = camera.geometry()
-    cells, membership, names = _cells(partition, shape)
+    cells, membership, names = _cells(partition, shape, rows=1)
     zbuffer, moving, status, residual, residual_z = _buffers(shape)
-    maps = (status, residual, residual_z)  # one tuple type: numba compiles one signature
+    # one tuple type (numba compiles one signature); maps not kept: one row, rewritten per row
+    maps = (status, residual, residual_z) if keep_maps else _row_maps(shape[1])
     scratch = km.row_buffers(shape[1])
     limits = np.array([chosen.border, chosen.occlusion_tolerance], np.float64)
     thresholds = np.asarray(chosen.thresholds, dtype=np.float64)

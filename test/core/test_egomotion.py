@@ -133,18 +133,81 @@ def numpy_residual(
     counted = status == 0
     residual = np.where(counted, residual, np.nan)
     residual_z = np.where(counted, residual_z, np.nan)
-    cells = np.zeros((height, width), np.int64) if cells is None else cells
+    sums = numpy_cell_sums(status, residual, residual_z, cells, options.thresholds)
+    return sums, status, residual
+
+
+def numpy_cell_sums(
+    status: np.ndarray,
+    residual: np.ndarray,
+    residual_z: np.ndarray,
+    cells: np.ndarray | None,
+    thresholds: tuple[float, ...],
+) -> np.ndarray:
+    """Per cell: pixels, each status's count, the counted pixels' terms, the bad counts."""
+    cells = np.zeros(status.shape, np.int64) if cells is None else cells
     n_cells = int(cells.max()) + 1
     inside = cells >= 0
+    counted = (status == 0) & inside
     columns = [np.bincount(cells[inside], minlength=n_cells)]
     columns += [np.bincount(cells[inside & (status == k)], minlength=n_cells) for k in range(7)]
-    c = cells[counted & inside]
-    r, rz = residual[counted & inside], residual_z[counted & inside]
+    c = cells[counted]
+    r, rz = residual[counted].astype(np.float64), residual_z[counted].astype(np.float64)
     for values in (np.abs(r), r, r * r, np.abs(rz), rz * rz):
         columns.append(np.bincount(c, weights=values, minlength=n_cells))
-    for t in options.thresholds:
+    for t in thresholds:
         columns.append(np.bincount(c[np.abs(r) > t], minlength=n_cells))
-    return np.stack(columns, axis=1).astype(np.float64), status, residual
+    return np.stack(columns, axis=1).astype(np.float64)
+
+
+def numpy_edges(disparity: np.ndarray, gap: float, width: int) -> np.ndarray:
+    """Both ends of every 4-neighbour jump > ``gap`` between valid pixels, dilated width × width."""
+    with np.errstate(invalid="ignore"):
+        across = np.abs(np.diff(disparity, axis=1)) > gap
+        down = np.abs(np.diff(disparity, axis=0)) > gap
+    jumps = np.zeros(disparity.shape, bool)
+    jumps[:, 1:] |= across
+    jumps[:, :-1] |= across
+    jumps[1:] |= down
+    jumps[:-1] |= down
+    reach = width // 2
+    padded = np.pad(jumps, reach)
+    out = np.zeros_like(jumps)
+    height, columns = jumps.shape
+    for dy in range(width):
+        for dx in range(width):
+            out |= padded[dy : dy + height, dx : dx + columns]
+    return out
+
+
+def numpy_flicker(
+    frames: list[MotionFrame],
+    camera: Camera,
+    options: EgoMotionOptions,
+    cells: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flicker from its definition: sums per cell (as :func:`numpy_cell_sums`), status, spread.
+
+    Missing where a frame has no estimate; then near an edge of the window's mean map; then
+    moving where the left images' range exceeds the photometric threshold; else counted.
+    """
+    stack = np.stack([frame.disparity for frame in frames]).astype(np.float64)
+    missing = ~(stack + camera.doffs > 0).all(axis=0)
+    with np.errstate(all="ignore"):
+        mean = np.where(missing, np.nan, stack.mean(axis=0)).astype(np.float32)
+        spread = np.std(stack, axis=0, ddof=1)
+        spread_z = np.std(camera.fb / (stack + camera.doffs), axis=0, ddof=1)
+    edge = numpy_edges(mean, options.edge_gap, options.edge_width)
+    moving = np.zeros(missing.shape, bool)
+    if frames[0].image.size:
+        images = np.stack([frame.image for frame in frames]).astype(np.int64)
+        moving = images.max(axis=0) - images.min(axis=0) > options.photometric_threshold
+    status = np.select([missing, edge, moving], [1, 5, 6], 0).astype(np.int8)
+    counted = status == 0
+    spread = np.where(counted, spread, np.nan).astype(np.float32)
+    spread_z = np.where(counted, spread_z, np.nan).astype(np.float32)
+    sums = numpy_cell_sums(status, spread, spread_z, cells, options.thresholds)
+    return sums, status, spread
 
 
 # --------------------------------------------------------------------------------------------
@@ -540,6 +603,30 @@ def test_flicker_masks_edges_and_changing_intensity():
     assert summary["n_edge"] == np.count_nonzero(scored_edges)
     assert summary["n_moving"] > 100
     assert sum(summary[f"n_{name}"] for name in STATUS_NAMES) == summary["n"]
+
+
+def test_flicker_agrees_with_plain_numpy_with_images_and_criteria():
+    rng = np.random.default_rng(5)
+    truth = [drive_frame(0)[0], drive_frame(0)[0], drive_frame(0)[0], drive_frame(0)[0]]
+    images = [f.left.copy() for f in truth]
+    images[2][40:70, 200:260] = 255 - images[2][40:70, 200:260]  # something passed in front
+    estimates = [f.gt_left + rng.normal(0, 0.4, f.gt_left.shape).astype(np.float32) for f in truth]
+    estimates[1][100:110, 300:340] = np.nan  # a hole in one frame
+    frames = [prepare_frame(e, image) for e, image in zip(estimates, images, strict=True)]
+    labels = rng.integers(0, 3, frames[0].shape).astype(np.int32)
+    part = crit.CriterionSet("parts", labels, ("a", "b", "c"), np.eye(3, dtype=bool))
+    partition = crit.build_partition(rng.random(frames[0].shape) > 0.2, [part])
+    options = EgoMotionOptions()
+    window = FlickerWindow(drive_camera().camera, options)
+    for frame in frames:
+        window.add(frame)
+    result = window.sums(partition, keep_maps=True)
+    sums, status, spread = numpy_flicker(frames, drive_camera().camera, options, partition.cells)
+    np.testing.assert_array_equal(result.maps[0], status)
+    np.testing.assert_allclose(result.maps[1], spread, rtol=1e-5, atol=1e-6, equal_nan=True)
+    np.testing.assert_allclose(result.sums, partition.membership @ sums, rtol=1e-5, atol=1e-4)
+    summary = result.summary("a")
+    assert min(summary["n_missing"], summary["n_edge"], summary["n_moving"]) > 0
 
 
 # --------------------------------------------------------------------------------------------

@@ -276,8 +276,10 @@ def motion_classify(
     ``source``/``target``: (disparity with NaN where missing, edge mask); ``zbuffer`` and
     ``moving`` from :func:`motion_splat`; ``limits``: (border margin px, occlusion tolerance px).
     ``maps``: the status (int8), disparity residual and depth residual (float32, NaN unless
-    counted) of every pixel, written in full. Per row: vectorised geometry, bare gathers, one
-    vectorised pass for the masks and residuals, the row's sums.
+    counted) of every pixel, written in full (maps of one row: rewritten for each row, when
+    the caller keeps only the sums; ``cells`` of one row: the same cells for every row). Per
+    row: vectorised geometry, bare gathers, one vectorised pass for the masks and residuals,
+    the row's sums.
     """
     src, src_edges = source
     tgt, tgt_edges = target
@@ -305,9 +307,10 @@ def motion_classify(
             tgt_edge[x] = edges_flat[i]
         edge_row = src_edges[y]
         moving_row = moving[y]
-        status_row = status_map[y]
-        r_row = r_map[y]
-        rz_row = rz_map[y]
+        kept = y if status_map.shape[0] == height else 0  # one row: the maps are not kept
+        status_row = status_map[kept]
+        r_row = r_map[kept]
+        rz_row = rz_map[kept]
         for x in range(width):  # selects, last mask first: the first that applies wins
             observed = sampled[x] - offset
             seen = observed + doffs  # NaN: a support pixel is missing
@@ -325,7 +328,8 @@ def motion_classify(
             status_row[x] = status
             r_row[x] = observed - value if counted else np.nan
             rz_row[x] = rz if counted else np.nan
-        _row_sums(status_row, r_row, rz_row, cells[y], thresholds, sums)
+        cell_row = cells[y if cells.shape[0] == height else 0]  # one row: the same for every row
+        _row_sums(status_row, r_row, rz_row, cell_row, thresholds, sums)
 
 
 MASKED_CELLS = 4
