@@ -496,7 +496,7 @@ class FlickerWindow:
         if self.frames < 2:
             raise InputError(f"flicker needs at least 2 frames in a window, got {self.frames}")
         shape = self._frames[0].shape
-        cells, membership, names = _cells(partition, shape)
+        cells, membership, names = _cells(partition, shape, rows=1)
         thresholds = np.asarray(self.options.thresholds, dtype=np.float64)
         sums = np.zeros((membership.shape[1], len(BASE_COLUMNS) + thresholds.size), np.float64)
         zbuffer, _, status, residual, residual_z = _buffers(shape)

@@ -355,8 +355,8 @@ class EvaluatorNode(Node):
         as_fast_as_possible = self.options.bag_rate is None
 
         def push(topic: str, msg: Any, log_time: int) -> None:
-            if self.config.topics.get(topic) == TF_TYPE:  # transforms: no header, no shift
-                self._push(topic, msg, log_time + offset)
+            if self.config.topics.get(topic) == TF_TYPE:  # no header: each transform's stamp
+                self._push(topic, _ShiftedTransforms(msg, offset) if offset else msg, log_time + offset)
                 return
             for seen, value in ((stamps, stamp_ns(msg.header)), (logs, log_time)):
                 if not seen:
@@ -509,6 +509,16 @@ class _Shifted:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._msg, name)
+
+
+class _ShiftedTransforms:
+    """A ``TFMessage`` whose transforms' stamps are moved by ``offset`` ns, as the frames are.
+
+    A later pass of ``bag_loop`` then finds the camera's motion at its shifted stamps.
+    """
+
+    def __init__(self, msg: Any, offset: int) -> None:
+        self.transforms = [_Shifted(stamped, offset) for stamped in msg.transforms]
 
 
 def _check_bag(path: Path, topics: Sequence[str]) -> None:

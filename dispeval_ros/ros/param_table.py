@@ -335,7 +335,8 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "bag_loop",
         BOOL,
         False,
-        "Replay the bag again and again; each pass is shifted in time so it continues the last",
+        "Replay the bag again and again; each pass (its /tf too) is shifted in time so it "
+        "continues the last",
     ),
     Param(
         "bag_wait_subscribers",

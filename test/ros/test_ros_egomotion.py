@@ -3,7 +3,8 @@ its exact motion as ``nav_msgs/Odometry`` (odom → base_link) and the camera's 
 ``camera_mount`` parameter. The node's ``/dispeval/scores`` carry each pair's ego-motion
 residual exactly as the core fed the same messages scores it (so the node adds no logic), the
 true disparity's is near 0 and a noisy one's is not; frames whose motion the odometry does not
-reach are one problem status per pair, and the node goes on (needs ROS 2 and nav_msgs)."""
+reach are one problem status per pair, and the node goes on; a looped replay of a bag with /tf
+finds the motion in every pass (needs ROS 2 and nav_msgs)."""
 
 from __future__ import annotations
 
@@ -23,9 +24,23 @@ from ros_nodes_support import (
 )
 from ros_support import Ros, ros_import
 
-from dispeval_ros.offline.make_bag import CAMERA_FRAME, ODOM_FRAME, START_NS, synthetic_frames
+from dispeval_ros.offline.make_bag import (
+    CAMERA_FRAME,
+    GT_TOPIC,
+    LEFT_IMAGE,
+    LEFT_INFO,
+    ODOM_FRAME,
+    RIGHT_IMAGE,
+    RIGHT_INFO,
+    START_NS,
+    disparity_topic,
+    estimates_from,
+    synthetic_frames,
+    write_bag,
+)
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.vectors import read_pairs
+from dispeval_ros.testbed.methods import default_methods
 
 nav_msgs = ros_import("nav_msgs.msg")
 geometry_msgs = ros_import("geometry_msgs.msg")
@@ -226,3 +241,50 @@ def test_frames_the_odometry_does_not_reach_are_problems_per_pair(
         assert sorted(motion_of(array)) == sorted(p.method for p in result.motion_pairs)
     assert [len(problems_of(a)) for a in scores] == [0, 0, 1, 1]  # one line per pair
     assert node.frames_scored == FRAMES  # every frame scored and published all the same
+
+
+def test_a_looped_replay_finds_the_motion_in_every_pass(
+    ros: Ros, drive: list[Any], tmp_path: Any
+) -> None:
+    """``bag_loop`` moves the /tf stamps with the frames' (else a later pass has no motion)."""
+    one_method = default_methods(WIDTH)[:1]  # written beside the two estimates, not scored
+    rng = np.random.default_rng(2)
+    sources = []
+    for name, noise in NOISE.items():
+        (tmp_path / name).mkdir()
+        for index, frame in enumerate(drive):
+            gt = np.asarray(frame.gt, dtype=np.float32)
+            noisy = gt + rng.normal(0, noise, gt.shape).astype(np.float32) * (noise > 0)
+            np.save(tmp_path / name / f"{index:06d}.npy", noisy)
+        sources.append(estimates_from(name, tmp_path / name))
+    bag = tmp_path / "drive"
+    write_bag(bag, iter(drive), storage="rosbag2-sqlite3", methods=one_method, estimates=sources)
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    node = ros.evaluator(
+        methods=[f"{m}:{disparity_topic(m)}" for m in NOISE],
+        gt_topic=GT_TOPIC,
+        left_camera_info=LEFT_INFO,
+        right_camera_info=RIGHT_INFO,
+        left_image_topic=LEFT_IMAGE,
+        right_image_topic=RIGHT_IMAGE,
+        egomotion=True,
+        bag=str(bag),
+        bag_rate=0.0,
+        bag_loop=True,
+        bag_exit=False,
+        bag_wait_subscribers=1,
+    )
+    passes = 3
+    assert ros.spin_until(lambda: len(scores) >= passes * FRAMES, timeout=60.0)
+    node._stop.set()
+    arrays = scores[: passes * FRAMES]
+    moved = [sorted(motion_of(array)) for array in arrays]
+    # each pass: its first frame starts a new run of pairs, the others carry both residuals
+    assert moved == ([[]] + [sorted(NOISE)] * (FRAMES - 1)) * passes, moved
+    first, later = (
+        {m: s.sums for m, (_, s) in motion_of(arrays[k]).items()} for k in (1, FRAMES + 1)
+    )
+    for method in NOISE:  # the same frames and motion give the same residual in every pass
+        np.testing.assert_array_equal(first[method], later[method])

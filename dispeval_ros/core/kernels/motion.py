@@ -500,8 +500,8 @@ def flicker_spread(
     square = np.empty(width, np.float64)
     square_z = np.empty(width, np.float64)
     valid = np.empty(width, np.bool_)
-    low = np.empty(width, np.int32)
-    high = np.empty(width, np.int32)
+    low = np.empty(width, np.uint8)  # grey levels as they are: 64 lanes a vector
+    high = np.empty(width, np.uint8)
     per = 1.0 / frames  # reciprocals: multiplications in the per-pixel loop
     per_dof = 1.0 / (frames - 1)
     for y in range(height):
@@ -530,18 +530,20 @@ def flicker_spread(
                 total_z[x] += deviation_z
                 square[x] += deviation * deviation
                 square_z[x] += deviation_z * deviation_z
-        low[:] = 256
-        high[:] = -1
+        low[:] = 0  # no images: a range of 0, never moving
+        high[:] = 0
         if with_images:
-            for f in range(frames):
+            low[:] = images[0][y]
+            high[:] = images[0][y]
+            for f in range(1, frames):
                 grey = images[f][y]
                 for x in range(width):
-                    low[x] = min(low[x], np.int32(grey[x]))
-                    high[x] = max(high[x], np.int32(grey[x]))
+                    low[x] = min(low[x], grey[x])
+                    high[x] = max(high[x], grey[x])
         mean_row, status_row, r_row, rz_row = mean[y], status_map[y], r_map[y], rz_map[y]
         for x in range(width):
             complete = valid[x]
-            moving = np.float64(high[x] - low[x]) > photometric
+            moving = np.float64(np.int32(high[x]) - np.int32(low[x])) > photometric
             # float32 square roots of the float64 variances: the maps are float32 anyway
             spread = np.sqrt(np.float32(max(square[x] - total[x] * total[x] * per, 0.0) * per_dof))
             spread_z = np.sqrt(
@@ -566,9 +568,11 @@ def flicker_sums(
     status_map, r_map, rz_map = maps
     height, width = edges.shape
     for y in range(height):
-        for x in range(width):
-            if edges[y, x] and status_map[y, x] != MISSING:
-                status_map[y, x] = EDGE
-                r_map[y, x] = np.nan
-                rz_map[y, x] = np.nan
-        _row_sums(status_map[y], r_map[y], rz_map[y], cells[y], thresholds, sums)
+        edge_row, status_row, r_row, rz_row = edges[y], status_map[y], r_map[y], rz_map[y]
+        for x in range(width):  # selects: it vectorises
+            near = edge_row[x] & (status_row[x] != MISSING)
+            status_row[x] = EDGE if near else status_row[x]
+            r_row[x] = np.float32(np.nan) if near else r_row[x]
+            rz_row[x] = np.float32(np.nan) if near else rz_row[x]
+        cell_row = cells[y if cells.shape[0] == height else 0]  # one row: the same for every row
+        _row_sums(status_row, r_row, rz_row, cell_row, thresholds, sums)
