@@ -154,6 +154,28 @@ NOISY_BIASED = {"noisy": (0.5, 0.0), "biased": (0.0, 1.5)}
 """Per method: px of Gaussian noise and a constant px offset added to the GT."""
 
 
+def noisy_drive_bag(root: Path, drive: list[Any], noise: Mapping[str, float], seed: int) -> Path:
+    """ROOT/drive: a synthetic drive bag (with its exact /tf) whose methods are its GT plus
+    Gaussian noise of ``noise[name]`` px drawn anew in each frame (kept in ROOT/<name>/)."""
+    from dispeval_ros.offline.make_bag import estimates_from, write_bag
+    from dispeval_ros.testbed.methods import default_methods
+
+    rng = np.random.default_rng(seed)
+    sources = []
+    for name, sigma in noise.items():
+        (root / name).mkdir()
+        for index, frame in enumerate(drive):
+            gt = np.asarray(frame.gt, dtype=np.float32)
+            estimate = gt + rng.normal(0, sigma, gt.shape).astype(np.float32) * (sigma > 0)
+            np.save(root / name / f"{index:06d}.npy", estimate.astype(np.float32))
+        sources.append(estimates_from(name, root / name))
+    write_bag(
+        root / "drive", iter(drive), storage="rosbag2-sqlite3",
+        methods=default_methods(drive[0].gt.shape[1])[:1], estimates=sources,
+    )  # fmt: skip
+    return root / "drive"
+
+
 def noisy_biased_drive(root: Path, frames: int, width: int, height: int) -> list[str]:
     """A synthetic drive bag (ROOT/drive, with its exact /tf) of :data:`NOISY_BIASED`'s methods.
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bag_support import noisy_drive_bag
 from ros_nodes_support import (
     convert,
     diagnostic_msgs,
@@ -34,13 +35,10 @@ from dispeval_ros.offline.make_bag import (
     RIGHT_INFO,
     START_NS,
     disparity_topic,
-    estimates_from,
     synthetic_frames,
-    write_bag,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.vectors import read_pairs
-from dispeval_ros.testbed.methods import default_methods
 
 nav_msgs = ros_import("nav_msgs.msg")
 geometry_msgs = ros_import("geometry_msgs.msg")
@@ -247,18 +245,7 @@ def test_a_looped_replay_finds_the_motion_in_every_pass(
     ros: Ros, drive: list[Any], tmp_path: Any
 ) -> None:
     """``bag_loop`` moves the /tf stamps with the frames' (else a later pass has no motion)."""
-    one_method = default_methods(WIDTH)[:1]  # written beside the two estimates, not scored
-    rng = np.random.default_rng(2)
-    sources = []
-    for name, noise in NOISE.items():
-        (tmp_path / name).mkdir()
-        for index, frame in enumerate(drive):
-            gt = np.asarray(frame.gt, dtype=np.float32)
-            noisy = gt + rng.normal(0, noise, gt.shape).astype(np.float32) * (noise > 0)
-            np.save(tmp_path / name / f"{index:06d}.npy", noisy)
-        sources.append(estimates_from(name, tmp_path / name))
-    bag = tmp_path / "drive"
-    write_bag(bag, iter(drive), storage="rosbag2-sqlite3", methods=one_method, estimates=sources)
+    bag = noisy_drive_bag(tmp_path, drive, NOISE, seed=2)
     scores = ros.collect(
         diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
     )

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from bag_support import drive_motion_lookup
+from bag_support import drive_motion_lookup, noisy_drive_bag
 
 from dispeval_ros.core.egomotion import PinholeCamera, egomotion_residual, prepare_frame
 from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GroundTruthFree
@@ -33,9 +33,7 @@ from dispeval_ros.offline.make_bag import (
     RIGHT_INFO,
     START_NS,
     disparity_topic,
-    estimates_from,
     synthetic_frames,
-    write_bag,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
@@ -45,7 +43,6 @@ from dispeval_ros.stream.vectors import (
     result_statuses,
     scores_from_status,
 )
-from dispeval_ros.testbed.methods import default_methods
 
 FRAMES = 4
 
@@ -60,20 +57,7 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The drive with the true disparity and a noisy one published as methods."""
     root = tmp_path_factory.mktemp("ego")
     drive = list(synthetic_frames(FRAMES, WIDTH, HEIGHT, 10.0, seed=SEED))
-    rng = np.random.default_rng(5)
-    sources = []
-    for name, noise in NOISE.items():
-        (root / name).mkdir()
-        for index, frame in enumerate(drive):
-            gt = np.asarray(frame.gt, dtype=np.float32)
-            estimate = gt + rng.normal(0, noise, gt.shape).astype(np.float32) * (noise > 0)
-            np.save(root / name / f"{index:06d}.npy", estimate.astype(np.float32))
-        sources.append(estimates_from(name, root / name))
-    write_bag(
-        root / "drive", iter(drive), storage="rosbag2-sqlite3",
-        methods=default_methods(WIDTH)[:1], estimates=sources,
-    )  # fmt: skip
-    return root / "drive"
+    return noisy_drive_bag(root, drive, NOISE, seed=5)
 
 
 drive_motion = drive_motion_lookup(WIDTH, HEIGHT, SEED)
