@@ -525,8 +525,16 @@ class FlickerWindow:
             tuple(float(t) for t in self.options.thresholds),
             membership.astype(np.float64) @ sums,
             (),
-            tuple(m.copy() for m in maps) if keep_maps else (),
+            _counted_maps(maps) if keep_maps else (),
         )
+
+
+def _counted_maps(maps: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, ...]:
+    """Copies of the status and spread maps, the spreads NaN where a pixel was not counted."""
+    status, spread, spread_z = maps
+    counted = status == km.COUNTED
+    nan = np.float32(np.nan)
+    return status.copy(), np.where(counted, spread, nan), np.where(counted, spread_z, nan)
 
 
 def flicker(

@@ -605,7 +605,8 @@ def test_flicker_masks_edges_and_changing_intensity():
     assert sum(summary[f"n_{name}"] for name in STATUS_NAMES) == summary["n"]
 
 
-def test_flicker_agrees_with_plain_numpy_with_images_and_criteria():
+@pytest.mark.parametrize("thresholds", [(0.5, 2.0, 4.0), (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5)])
+def test_flicker_agrees_with_plain_numpy_with_images_and_criteria(thresholds):
     rng = np.random.default_rng(5)
     truth = [drive_frame(0)[0], drive_frame(0)[0], drive_frame(0)[0], drive_frame(0)[0]]
     images = [f.left.copy() for f in truth]
@@ -616,7 +617,7 @@ def test_flicker_agrees_with_plain_numpy_with_images_and_criteria():
     labels = rng.integers(0, 3, frames[0].shape).astype(np.int32)
     part = crit.CriterionSet("parts", labels, ("a", "b", "c"), np.eye(3, dtype=bool))
     partition = crit.build_partition(rng.random(frames[0].shape) > 0.2, [part])
-    options = EgoMotionOptions()
+    options = EgoMotionOptions(thresholds=thresholds)
     window = FlickerWindow(drive_camera().camera, options)
     for frame in frames:
         window.add(frame)
