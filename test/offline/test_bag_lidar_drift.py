@@ -264,3 +264,40 @@ def test_the_scores_statuses_carry_each_pairs_drift(drive: Path) -> None:
             assert float(value) == pytest.approx(expected.summary("all")["mean"])
             seen += 1
     assert seen == (FRAMES - 1) * len(METHODS)
+
+
+def test_a_make_scene_drive_drifts_in_its_bag_as_eval_scores_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same drive both ways: ``eval --scene --gt-source scan`` on make-scene's KITTI raw
+    drive, ``dispeval bag --gt-cloud`` on make-bag's bag of it (the scans as PointCloud2, the
+    oxts as /tf, the maps as DisparityImages): the same projected scans, motion and maps give
+    the same drift sums, to rounding."""
+    assert main(["make-scene", str(tmp_path / "sc"), "--frames", "4", "--no-traffic"]) == 0
+    scene = tmp_path / "sc" / "2000_01_01" / "2000_01_01_drive_0001_sync"
+    ests = {"mine": tmp_path / "sc" / "estimates" / "sgbm", "true": scene / "gt" / "disp_occ_0"}
+    est_args = [i for name, folder in ests.items() for i in ("--est", f"{name}={folder}")]
+    assert main(["make-bag", str(tmp_path / "bag"), "--scene", str(scene), *est_args]) == 0
+    quick = ["--criteria", *CRITERIA, "--gt-free-criteria", "all", "--egomotion"]
+    capsys.readouterr()
+    assert main(["eval", "--scene", str(scene), "--gt-source", "scan", *est_args, *quick,
+                 "--json"]) == 0  # fmt: skip
+    scored = json.loads(capsys.readouterr().out)["egomotion"]["lidar_drift"]
+    topics = [i for name in ests for i in ("--method", f"{name}=/stereo/{name}/disparity")]
+    out = tmp_path / "res"
+    assert main([
+        "bag", str(tmp_path / "bag"), "--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO,
+        RIGHT_INFO, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE, *topics,
+        "--tolerance", "20", *quick, "--out", str(out), "--quiet",
+    ]) == 0  # fmt: skip
+    bagged = json.loads((out / "summary.json").read_text())["sequences"][0]["lidar_drift"]
+    assert bagged["options"] == scored["options"]
+    for name in ests:
+        got, expected = bagged["methods"][name]["sums"], scored["methods"][name]["sums"]
+        assert list(got) == list(expected)
+        assert len(got) == 4
+        for criterion, sums in expected.items():
+            assert got[criterion] == pytest.approx(sums, rel=1e-9, abs=1e-6), criterion
+        assert got["drift:all"]["n_drift"] > 0.8 * got["drift:all"]["n"]
+    true = bagged["methods"]["true"]["criteria"]["drift:all"]
+    assert true["mean"] < 0.05  # a static world: the true disparity hardly drifts
