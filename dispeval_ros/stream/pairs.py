@@ -62,6 +62,12 @@ PAIR_GAP_RULE = (
     "frame or a pause ends the run of pairs)"
 )
 """The pair gap's meaning, as every front end's help says it."""
+DRIFT_RULE = (
+    "with point-cloud ground truth also each method's LiDAR drift between scans over the same "
+    "pairs (drift:* criteria: the change of its error from scan t to scan t+1, temporal noise, "
+    "not accuracy)"
+)
+"""When the ego-motion pairs also give the LiDAR drift, as every front end's help says it."""
 MOTION_WAIT = 8
 """Ego-motion pairs kept waiting for the motion source at most (then the oldest is scored
 with what it holds): bounds memory when ``/tf`` lags or never comes."""
