@@ -316,11 +316,16 @@ def read_pairs(
     record: StatusRecord,
     pairs: dict[str, tuple[int, PairScores]],
     motion: dict[str, tuple[int, TemporalSums]],
+    drift: dict[str, DriftSums] | None = None,
 ) -> None:
-    """Add a method status's pair and ego-motion residual, where it has them, by its name.
+    """Add a method status's pair, ego-motion residual and drift, where it has them, by name.
 
     What every summarizer reads of a status beside its scores (:func:`scores_from_status`).
     """
+    if drift is not None:
+        found = drift_from_status(record.values)
+        if found is not None:
+            drift[record.name] = found
     pair = pair_from_status(record.values)
     if pair is not None:
         pairs[record.name] = pair

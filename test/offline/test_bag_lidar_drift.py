@@ -42,7 +42,14 @@ from dispeval_ros.offline.make_bag import (
     write_bag,
 )
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore
-from dispeval_ros.stream.vectors import DRIFT_KEY_PREFIX, drift_from_status, result_statuses
+from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
+from dispeval_ros.stream.vectors import (
+    DRIFT_KEY_PREFIX,
+    drift_from_status,
+    read_pairs,
+    result_statuses,
+    scores_from_status,
+)
 from dispeval_ros.testbed.lidar import LidarModel
 from dispeval_ros.testbed.methods import default_methods
 from dispeval_ros.testbed.presets import driving_setup
@@ -240,15 +247,21 @@ def test_a_database_written_before_the_drift_table_reads_as_not_recorded(
     assert main(["report", str(old)]) == 0
 
 
-def test_the_scores_statuses_carry_each_pairs_drift(drive: Path) -> None:
-    """Live shares the stream core: a frame's status has the drift keys, read back exactly."""
+def test_the_scores_statuses_carry_each_pairs_drift_and_a_summarizer_stores_it(
+    drive: Path, tmp_path: Path
+) -> None:
+    """Live shares the stream core: a frame's status has the drift keys, read back exactly,
+    and the summarizers' core stores them as ``dispeval bag`` does."""
     _, results = scans_through_the_core(drive)
     topics = {m: disparity_topic(m) for m in METHODS}
+    core = SummarizerCore(SummarizerConfig(tmp_path / "live", every_n=2), {"run": "live"})
     seen = 0
     for result in results:
-        statuses = result_statuses(result, topics)
         here = {p.method: p.drift for p in result.motion_pairs if p.stamp == result.stamp}
-        for status in statuses:
+        scores, pairs, motion, drifts = {}, {}, {}, {}
+        for status in result_statuses(result, topics):
+            scores[status.name] = scores_from_status(status.values)
+            read_pairs(status, pairs, motion, drifts)
             drift = drift_from_status(status.values)
             if status.name not in here:
                 assert drift is None
@@ -261,9 +274,18 @@ def test_the_scores_statuses_carry_each_pairs_drift(drive: Path) -> None:
             np.testing.assert_array_equal(drift.sums, expected.sums)
             keys = dict(status.values)
             value = keys[f"{DRIFT_KEY_PREFIX}drift:all/mean"]
-            assert float(value) == pytest.approx(expected.summary("all")["mean"])
+            assert float(value) == expected.summary("all")["mean"]
             seen += 1
+        core.add(result.stamp, scores, None, None, motion, drifts)
     assert seen == (FRAMES - 1) * len(METHODS)
+    assert core.finish() is not None
+    with ResultsStore.open(tmp_path / "live") as store:
+        stored = store.drift_pairs(store.sequences()[0])
+    assert stored is not None
+    for method in METHODS:
+        parts = [p.drift for r in results for p in r.motion_pairs if p.method == method]
+        assert stored[method][0] == len(parts) == FRAMES - 1
+        np.testing.assert_array_equal(stored[method][1].sums, np.sum([p.sums for p in parts], 0))
 
 
 def test_a_make_scene_drive_drifts_in_its_bag_as_eval_scores_it(
