@@ -150,6 +150,7 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
     """
     from matplotlib.ticker import MaxNLocator
 
+
     panels = [
         (name, kind, block[f"{kind}_series"])
         for name, block in temporal["sequences"].items()
