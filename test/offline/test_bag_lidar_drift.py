@@ -323,3 +323,34 @@ def test_a_make_scene_drive_drifts_in_its_bag_as_eval_scores_it(
         assert got["drift:all"]["n_drift"] > 0.8 * got["drift:all"]["n"]
     true = bagged["methods"]["true"]["criteria"]["drift:all"]
     assert true["mean"] < 0.05  # a static world: the true disparity hardly drifts
+
+
+@pytest.mark.data
+def test_the_readme_states_the_shared_drives_drift_from_its_bag(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    """The README's numbers of ``dispeval bag --egomotion`` on make-bag's bag of the shared
+    KITTI raw drive, by the command it shows."""
+    from test_readme import README
+
+    scene = shared_data / "kitti-raw-drive-0048" / "2011_09_26" / "2011_09_26_drive_0048_sync"
+    assert main(["make-bag", str(tmp_path / "drive"), "--scene", str(scene)]) == 0
+    out = tmp_path / "results"
+    assert main([
+        "bag", str(tmp_path / "drive"), "--gt-cloud", CLOUD_TOPIC, "--camera-info", LEFT_INFO,
+        RIGHT_INFO, "--left-image", LEFT_IMAGE, "--right-image", RIGHT_IMAGE,
+        "--method", "sgbm=/stereo/sgbm/disparity", "--method", "bm_fast=/stereo/bm_fast/disparity",
+        "--tolerance", "20", "--egomotion", "--criteria", "all", "depth", "--out", str(out),
+        "--quiet",
+    ]) == 0  # fmt: skip
+    entry = json.loads((out / "summary.json").read_text())["sequences"][0]["lidar_drift"]
+    sgbm, bm = (entry["methods"][m]["criteria"]["drift:all"] for m in ("sgbm", "bm_fast"))
+    assert entry["methods"]["sgbm"]["pairs"] == entry["methods"]["bm_fast"]["pairs"] == 9
+    assert sgbm["n_drift"] == bm["n_drift"]
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    expected = (
+        f"give `drift:all` SGBM {sgbm['mean']:.2f} px mean, {sgbm['bad_1']:.1f} % above 1 px, "
+        f"BM {bm['mean']:.2f} px, {bm['bad_1']:.1f} %, over {int(sgbm['n_drift'])} of the "
+        f"{int(sgbm['n'])} points ({sgbm['counted']:.1f} %)"
+    )
+    assert expected in text
