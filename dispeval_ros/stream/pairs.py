@@ -301,10 +301,15 @@ class PairStage:
                 residual = egomotion_residual(
                     first, second, moved, previous.camera, previous.partition, self.egomotion
                 )
-                drift = self._drift(previous, frame, method, moved)
-                sums.append(MotionPair(stamp, before, method, residual, drift))
             except DispevalError as error:
                 problems.append((method, f"{method}: {where}: {error}"))
+                continue
+            try:
+                drift = self._drift(previous, frame, method, moved)
+            except DispevalError as error:  # the residual is kept: the drift alone is lost
+                problems.append((method, f"{method}: no LiDAR drift {before} → {stamp}: {error}"))
+                drift = None
+            sums.append(MotionPair(stamp, before, method, residual, drift))
         return sums
 
     def _drift(

@@ -354,3 +354,34 @@ def test_the_readme_states_the_shared_drives_drift_from_its_bag(
         f"{int(sgbm['n'])} points ({sgbm['counted']:.1f} %)"
     )
     assert expected in text
+
+
+def test_a_pair_whose_drift_fails_keeps_its_residual_and_says_why_in_one_line() -> None:
+    """Scans of two sizes (a camera whose resolution changed): the drift is one problem line,
+    the residual of the pair is scored and kept."""
+    from dispeval_ros.core.egomotion import EgoMotionOptions
+    from dispeval_ros.core.evaluator import Evaluator
+    from dispeval_ros.core.lidar_drift import DriftOptions
+    from dispeval_ros.stream.pairs import PairInput, PairStage
+
+    camera = Camera(100.0, 0.5)
+    stage = PairStage(Evaluator(), None, egomotion=EgoMotionOptions(), drift=DriftOptions())
+    stage.motion = lambda frame, t0, t1: np.eye(4)
+    pinhole = PinholeCamera(camera, 16.0, 12.0)
+    estimate = np.full((24, 32), 10.0, np.float32)
+    outcomes = []
+    for index, shape in enumerate([(24, 32), (20, 32)]):
+        scan = np.zeros(shape, np.float32)
+        scan[::3, ::3] = 10.0
+        reference = Evaluator().reference(scan, camera)
+        inputs = {"m": stage.prepare(estimate, None, 0.0)}
+        frame = PairInput(index * 100_000_000, reference, inputs, None, pinhole, "cam")
+        outcomes.append(stage.add(frame))
+    outcomes.append(stage.finish())
+    pairs = [p for o in outcomes for p in o.motion]
+    problems = [text for o in outcomes for _, text in o.problems]
+    assert len(pairs) == 1
+    assert pairs[0].drift is None
+    assert pairs[0].sums.summary("all")["n_residual"] > 0
+    assert len(problems) == 1
+    assert problems[0].startswith("m: no LiDAR drift 0 → 100000000: the scan at t + k is 32×20")
