@@ -20,6 +20,7 @@ import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, drift_entry
 from dispeval_ros.core.measures import GT_FREE_PREFIX, applies
 from dispeval_ros.core.objectives import (
     default_objective_measures,
@@ -57,6 +58,23 @@ class SequenceSummary:
 
     motion: dict[str, tuple[int, TemporalSums]] | None = None
     """Per method: its ego-motion pairs and their residual sums pooled (``egomotion``)."""
+    drift: dict[str, tuple[int, DriftSums]] | None = None
+    """Per method: its LiDAR drift pairs and their sums pooled (``egomotion`` with LiDAR GT);
+    None: not recorded (a database older than the drift table)."""
+
+    def drift_dict(self) -> dict[str, Any] | None:
+        """The JSON ``lidar_drift`` entry as ``eval --egomotion --json`` writes it, with pairs.
+
+        Each method's entry also holds its ``pairs``; None without any drift (no LiDAR ground
+        truth, or not recorded).
+        """
+        if not self.drift:
+            return None
+        options = next(iter(self.drift.values()))[1].options
+        entry = drift_entry(options or DriftOptions(), {m: s for m, (_, s) in self.drift.items()})
+        for method, (pairs, _) in self.drift.items():
+            entry["methods"][method]["pairs"] = pairs  # type: ignore[index]
+        return entry
 
     def egomotion_dict(self) -> dict[str, Any] | None:
         """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
@@ -127,7 +145,11 @@ class RunSummary:
                     if s.timing is None
                     else {m: t.to_dict() for m, t in s.timing.items()},
                     **({"temporal": s.temporal_dict()} if self.temporal else {}),
-                    **({"egomotion": s.egomotion_dict()} if self.egomotion else {}),
+                    **(
+                        {"egomotion": s.egomotion_dict(), "lidar_drift": s.drift_dict()}
+                        if self.egomotion
+                        else {}
+                    ),
                 }
                 for s in self.sequences
             ],
@@ -211,6 +233,12 @@ def run_temporal(store: object) -> str | None:
 def sequence_motion(store: object, sequence: str) -> dict[str, tuple[int, TemporalSums]] | None:
     """Per method, its ego-motion pairs in ``sequence`` (None: not recorded, or live totals)."""
     reader = getattr(store, "motion_pairs", None)
+    return reader(sequence) if reader else None
+
+
+def sequence_drift(store: object, sequence: str) -> dict[str, tuple[int, DriftSums]] | None:
+    """Per method, its LiDAR drift pairs in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "drift_pairs", None)
     return reader(sequence) if reader else None
 
 
@@ -299,6 +327,7 @@ def summarize(
                 timing,
                 pairs,
                 motion,
+                sequence_drift(store, sequence),
             )
         )
         if names:

@@ -37,7 +37,7 @@ from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, wrapped
 from dispeval_ros.cli.summary import EGOMOTION_LABEL as LABEL
 from dispeval_ros.cli.summary import EGOMOTION_MASKED as MASKED
-from dispeval_ros.cli.summary import fitted_tables
+from dispeval_ros.cli.summary import drift_text, fitted_tables
 from dispeval_ros.cli.temporal_eval import Estimates, Runs, frame_runs
 from dispeval_ros.core import criteria as crit
 from dispeval_ros.core.camera import Camera
@@ -51,18 +51,13 @@ from dispeval_ros.core.egomotion import (
 )
 from dispeval_ros.core.evaluator import Reference
 from dispeval_ros.core.lidar_drift import (
-    PREFIX as DRIFT_PREFIX,
-)
-from dispeval_ros.core.lidar_drift import (
-    STATUS_NAMES as DRIFT_STATUS,
-)
-from dispeval_ros.core.lidar_drift import (
     DriftOptions,
     DriftSums,
     coded_estimate,
+    drift_entry,
     lidar_drift,
 )
-from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS, GT_FREE_PREFIX
+from dispeval_ros.core.measures import GT_FREE_PREFIX
 from dispeval_ros.errors import ConfigurationError, DispevalError, ExtrapolationError
 
 if TYPE_CHECKING:
@@ -75,18 +70,6 @@ POSES = (
 )
 UNITS = {"mean_abs": "px", "mean": "px", "rms": "px", "mean_abs_z": "m", "rms_z": "m"}
 """The units of the values (``bad_X``: % of the counted pixels)."""
-DRIFT_UNITS = {
-    "counted": "% of the points", "mean": "px", "rms": "px", "bias_drift": "px",
-    "mean_error": "px",
-}  # fmt: skip
-"""The units of the drift's values (``bad_X``: % of the counted points)."""
-DRIFT_LABEL = (
-    "temporal noise against the LiDAR scans: the change of each point's error from scan t to "
-    "scan t + k along the motion (static world); a constant bias drifts 0; not accuracy"
-)
-"""What the drift's outputs say it is (the text title and the JSON ``label``)."""
-DRIFT_DROPPED = tuple(f"n_{name}" for name in DRIFT_STATUS[1:])
-"""The drop counts of the drift table, in the order the tests apply."""
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -226,64 +209,12 @@ class EgoResult:
         }
 
     def _drift_dict(self) -> dict[str, object]:
-        """The ``lidar_drift`` entry: label, options, units, per method values and sums."""
-        chosen = self.drift_options
-        methods: dict[str, object] = {}
-        for name, pooled in self.drift.items():
-            if pooled is None:
-                methods[name] = {"criteria": None, "sums": None}
-                continue
-            labels = [DRIFT_PREFIX + c for c in pooled.criteria]
-            methods[name] = {
-                "criteria": {
-                    n: pooled.summary(c) for n, c in zip(labels, pooled.criteria, strict=True)
-                },
-                "sums": {
-                    n: dict(zip(pooled.columns, row.tolist(), strict=True))
-                    for n, row in zip(labels, pooled.sums, strict=True)
-                },
-            }
-        return {
-            "measure": "lidar_drift",
-            "label": DRIFT_LABEL,
-            "options": {
-                "missing": chosen.missing,
-                "visibility": str(chosen.visibility),
-                "thresholds": list(chosen.thresholds),
-            },
-            "units": {
-                **DRIFT_UNITS,
-                **{f"bad_{t:g}": "%" for t in chosen.thresholds},
-            },
-            "methods": methods,
-        }
+        """The ``lidar_drift`` entry (:func:`~dispeval_ros.core.lidar_drift.drift_entry`)."""
+        return drift_entry(self.drift_options, self.drift)
 
     def drift_text(self) -> str:
-        """The drift table: criterion, method, points, counted, drift values, drop counts."""
-        bad = [f"bad_{t:g}" for t in self.drift_options.thresholds]
-        header = [
-            "criterion", "method", "points", "counted [%]", "mean [px]", "rms [px]",
-            *(f"{b} [%]" for b in bad), "bias_drift [px]", *DRIFT_DROPPED,
-        ]  # fmt: skip
-        rows: list[list[object]] = []
-        scored = {m: pooled for m, pooled in self.drift.items() if pooled is not None}
-        for criterion in next(iter(scored.values())).criteria if scored else ():
-            for method, pooled in scored.items():
-                one = pooled.summary(criterion)
-                rows.append([
-                    DRIFT_PREFIX + criterion, method, int(one["n"]), one["counted"],
-                    one["mean"], one["rms"], *(one[b] for b in bad), one["bias_drift"],
-                    *(int(one[d]) for d in DRIFT_DROPPED),
-                ])  # fmt: skip
-        visibility = self.drift_options.visibility
-        title = wrapped(
-            f"LiDAR drift between scans ({DRIFT_LABEL}; missing estimates: "
-            f"{self.drift_options.missing}; hidden: a point of scan t + k nearer by more than "
-            f"{100 * visibility.gap:g} % within {visibility.window}×{visibility.window} px)"
-        )
-        return (
-            title + "\n" + (fitted_tables(header, rows, keep=2) if rows else "no pair was scored")
-        )
+        """The drift table (:func:`~dispeval_ros.cli.summary.drift_text`)."""
+        return drift_text(self.drift_options, self.drift)
 
     def text(self) -> str:
         """A table (criterion, method, counted pixels, residuals, mask counts), runs, gaps."""
@@ -366,9 +297,7 @@ def score(
         {p for method_runs in runs.values() for r in method_runs for p in itertools.pairwise(r)}
     )
     sums: dict[str, list[TemporalSums]] = {method: [] for method in runs}
-    drift_options = DriftOptions(
-        missing=args.missing, thresholds=tuple(sorted({args.delta, *DEFAULT_BAD_THRESHOLDS}))
-    )
+    drift_options = DriftOptions.of_run(args.missing, args.delta)
     drift: dict[str, DriftSums | None] = dict.fromkeys(runs)
     coded: dict[tuple[str, int], np.ndarray] = {}
     images: dict[int, tuple[np.ndarray, crit.Partition]] = {}

@@ -18,7 +18,7 @@ from dispeval_ros.core.timing import TIMING_MEASURES, is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.stream.config import FieldNames, core_default, default_measures
 from dispeval_ros.stream.join import LATENESS_RULE
-from dispeval_ros.stream.pairs import PAIR_GAP_RULE
+from dispeval_ros.stream.pairs import DRIFT_RULE, PAIR_GAP_RULE
 
 if TYPE_CHECKING:
     from dispeval_ros.stream.core import CoreConfig
@@ -141,7 +141,8 @@ def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False
             action="store_true",
             help="also score each method's ego-motion residual over the same pairs (temporal "
             "noise without GT, on gtfree: criteria: frame t's estimate moved into frame t+1 by "
-            "the camera's motion from /tf and /tf_static; needs --camera-info; docs/method.md)",
+            "the camera's motion from /tf and /tf_static; needs --camera-info; docs/method.md); "
+            + DRIFT_RULE,
         )
 
 

@@ -8,6 +8,10 @@ from typing import Any
 from dispeval_ros.cli.output import plural, table, text_width, wrapped
 from dispeval_ros.core import ModelResult
 from dispeval_ros.core.egomotion import STATUS_NAMES
+from dispeval_ros.core.lidar_drift import LABEL as DRIFT_LABEL
+from dispeval_ros.core.lidar_drift import PREFIX as DRIFT_PREFIX
+from dispeval_ros.core.lidar_drift import STATUS_NAMES as DRIFT_STATUS
+from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums
 from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
 from dispeval_ros.core.objectives import has_points
 from dispeval_ros.core.timing import TIMING_MEASURES, WINDOW_NS
@@ -264,6 +268,46 @@ EGOMOTION_MASKED = tuple(f"n_{name}" for name in STATUS_NAMES[1:])
 """The mask counts of the residual's tables, in the order the masks apply."""
 
 
+DRIFT_DROPPED = tuple(f"n_{name}" for name in DRIFT_STATUS[1:])
+"""The drop counts of the drift tables, in the order the tests apply."""
+
+
+def drift_text(
+    options: DriftOptions,
+    drift: Mapping[str, DriftSums | None],
+    pairs: Mapping[str, int] | None = None,
+) -> str:
+    """The LiDAR drift table: criterion, method, (pairs,) points, counted, values, drop counts.
+
+    ``drift``: each method's pooled sums (None: no pair scored); ``pairs``: how many pairs
+    each pooled (a column when given). ``eval --egomotion`` and the bag tables both print it.
+    """
+    bad = [f"bad_{t:g}" for t in options.thresholds]
+    header = [
+        "criterion", "method", *(["pairs"] if pairs is not None else []), "points",
+        "counted [%]", "mean [px]", "rms [px]", *(f"{b} [%]" for b in bad), "bias_drift [px]",
+        *DRIFT_DROPPED,
+    ]  # fmt: skip
+    rows: list[list[object]] = []
+    scored = {m: pooled for m, pooled in drift.items() if pooled is not None}
+    for criterion in next(iter(scored.values())).criteria if scored else ():
+        for method, pooled in scored.items():
+            one = pooled.summary(criterion)
+            rows.append([
+                DRIFT_PREFIX + criterion, method,
+                *([pairs.get(method, 0)] if pairs is not None else []), int(one["n"]),
+                one["counted"], one["mean"], one["rms"], *(one[b] for b in bad),
+                one["bias_drift"], *(int(one[d]) for d in DRIFT_DROPPED),
+            ])  # fmt: skip
+    visibility = options.visibility
+    title = wrapped(
+        f"LiDAR drift between scans ({DRIFT_LABEL}; missing estimates: "
+        f"{options.missing}; hidden: a point of scan t + k nearer by more than "
+        f"{100 * visibility.gap:g} % within {visibility.window}×{visibility.window} px)"
+    )
+    return title + "\n" + (fitted_tables(header, rows, keep=2) if rows else "no pair was scored")
+
+
 def egomotion_text(motion: Mapping[str, Any] | None) -> str:
     """A sequence's ego-motion residuals (``egomotion``), or why there are none.
 
@@ -319,6 +363,12 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
             parts.append(temporal_text(sequence.pairs, summary.temporal))
         if getattr(summary, "egomotion", False):
             parts.append(egomotion_text(sequence.motion))
+            if getattr(sequence, "drift", None):  # only with LiDAR ground truth
+                drift = sequence.drift
+                options = next(iter(drift.values()))[1].options or DriftOptions()
+                pooled = {m: sums for m, (_, sums) in drift.items()}
+                pairs = {m: n for m, (n, _) in drift.items()}
+                parts.append("\n" + drift_text(options, pooled, pairs))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

@@ -29,6 +29,7 @@ sums over a sequence are exact. Everything is pure (arrays in, sums out).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,6 +57,16 @@ BASE_COLUMNS = (
     "sum_error",
 )
 """The sums' columns before one ``bad`` count per threshold (``|c| > threshold``)."""
+LABEL = (
+    "temporal noise against the LiDAR scans: the change of each point's error from scan t to "
+    "scan t + k along the motion (static world); a constant bias drifts 0; not accuracy"
+)
+"""What every drift output says it is (the text titles and the JSON ``label``)."""
+UNITS = {
+    "counted": "% of the points", "mean": "px", "rms": "px", "bias_drift": "px",
+    "mean_error": "px",
+}  # fmt: skip
+"""The units of the drift's values (``bad_X``: % of the counted points)."""
 WHAT = ("scan at t", "scan at t + k", "estimate at t", "estimate at t + k")
 """The four maps of a pair, as errors name them."""
 _BAD = len(BASE_COLUMNS)
@@ -79,6 +90,22 @@ class DriftOptions:
         if not all(isinstance(t, (int, float)) and t >= 0 for t in self.thresholds):
             raise ConfigurationError(f"drift thresholds must be ≥ 0, got {self.thresholds!r}")
 
+    @classmethod
+    def of_run(cls, missing: str, delta: float) -> DriftOptions:
+        """A run's options: its missing policy, thresholds its δ and the default bad levels.
+
+        The one rule ``eval --egomotion`` and ``dispeval bag --egomotion`` (and live) share.
+        """
+        return cls(missing=missing, thresholds=tuple(sorted({delta, *DEFAULT_BAD_THRESHOLDS})))
+
+    def to_dict(self) -> dict[str, object]:
+        """The JSON ``options`` of a drift entry (the visibility test as ``W,G``)."""
+        return {
+            "missing": self.missing,
+            "visibility": str(self.visibility),
+            "thresholds": list(self.thresholds),
+        }
+
 
 @dataclass(frozen=True)
 class DriftSums:
@@ -86,25 +113,51 @@ class DriftSums:
 
     ``sums[i]`` holds criterion ``criteria[i]``'s :data:`BASE_COLUMNS` then one count per
     threshold. ``maps`` (when asked for): per-pixel status (−1: not a point) and ``c`` (px).
+    ``options``: what they were scored under (pooled sums must share them; stored with them).
     """
 
     criteria: tuple[str, ...]
     thresholds: tuple[float, ...]
     sums: np.ndarray
     maps: tuple[np.ndarray, ...] = field(default=(), compare=False, repr=False)
+    options: DriftOptions | None = None
 
     @property
     def columns(self) -> tuple[str, ...]:
         """Names of the sums' columns."""
         return (*BASE_COLUMNS, *(f"bad_{t:g}" for t in self.thresholds))
 
+    @classmethod
+    def restored(
+        cls,
+        criteria: Sequence[str],
+        sums: np.ndarray,
+        missing: str,
+        visibility: str,
+        thresholds: Sequence[float],
+    ) -> DriftSums:
+        """Stored sums read back (a database row, a status); ValueError if they do not fit.
+
+        ``visibility``: the hidden test as ``W,G`` (:meth:`CloudFilter.parse`).
+        """
+        levels = tuple(float(t) for t in thresholds)
+        table = np.asarray(sums, dtype=np.float64)
+        if not criteria or table.size != len(criteria) * (len(BASE_COLUMNS) + len(levels)):
+            raise ValueError(f"{table.size} drift sums do not fit {len(criteria)} criteria")
+        try:
+            options = DriftOptions(missing, CloudFilter.parse(visibility), levels)
+        except ConfigurationError as error:
+            raise ValueError(str(error)) from None
+        return cls(tuple(criteria), levels, table.reshape(len(criteria), -1).copy(), (), options)
+
     def __add__(self, other: DriftSums) -> DriftSums:
-        if (other.criteria, other.thresholds) != (self.criteria, self.thresholds):
+        mine, theirs = (self.criteria, self.thresholds), (other.criteria, other.thresholds)
+        if mine != theirs or self.options != other.options:
             raise ConfigurationError(
                 f"cannot pool drift sums over {', '.join(other.criteria)} with drift sums over "
-                f"{', '.join(self.criteria)} (or other thresholds)"
+                f"{', '.join(self.criteria)} (or other thresholds or options)"
             )
-        return DriftSums(self.criteria, self.thresholds, self.sums + other.sums)
+        return DriftSums(self.criteria, self.thresholds, self.sums + other.sums, (), self.options)
 
     def summary(self, criterion: str) -> dict[str, float]:
         """Counts and values of one criterion (NaN where no point was counted).
@@ -128,6 +181,36 @@ class DriftSums:
         for t in self.thresholds:
             out[f"bad_{t:g}"] = 100.0 * per(row[f"bad_{t:g}"])
         return out
+
+
+def drift_entry(options: DriftOptions, drift: Mapping[str, DriftSums | None]) -> dict[str, object]:
+    """The ``lidar_drift`` JSON entry: label, options, units, per method values and sums.
+
+    Values and sums by ``drift:`` criterion (None: no pair scored). ``eval --egomotion
+    --json`` and the bag's summary.json both write it, so they read alike.
+    """
+    methods: dict[str, object] = {}
+    for name, pooled in drift.items():
+        if pooled is None:
+            methods[name] = {"criteria": None, "sums": None}
+            continue
+        labels = [PREFIX + c for c in pooled.criteria]
+        methods[name] = {
+            "criteria": {
+                n: pooled.summary(c) for n, c in zip(labels, pooled.criteria, strict=True)
+            },
+            "sums": {
+                n: dict(zip(pooled.columns, row.tolist(), strict=True))
+                for n, row in zip(labels, pooled.sums, strict=True)
+            },
+        }
+    return {
+        "measure": "lidar_drift",
+        "label": LABEL,
+        "options": options.to_dict(),
+        "units": {**UNITS, **{f"bad_{t:g}": "%" for t in options.thresholds}},
+        "methods": methods,
+    }
 
 
 def coded_estimate(estimate: object, missing: str, what: str = "the estimate") -> np.ndarray:
@@ -220,6 +303,7 @@ def lidar_drift(
         tuple(float(t) for t in chosen.thresholds),
         membership.astype(np.float64) @ sums,
         (status, change) if keep_maps else (),
+        chosen,
     )
 
 

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from dispeval_ros.core.egomotion import TemporalSums
+    from dispeval_ros.core.lidar_drift import DriftSums
     from dispeval_ros.core.measures import Scores
     from dispeval_ros.core.temporal import PairScores
 
@@ -73,6 +74,8 @@ class FrameMotion:
     method: str
     previous: int
     sums: TemporalSums
+    drift: DriftSums | None = None
+    """The LiDAR drift of the same pair (stored in its own table; None: not scored)."""
 
 
 @dataclass(frozen=True)

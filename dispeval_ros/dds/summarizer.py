@@ -30,6 +30,7 @@ from typing import Any
 
 from dispeval_ros.core import Scores
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.dds.diagnostics import diagnostic_array, records_of
 from dispeval_ros.dds.evaluator import MIN_RESTART_NS
@@ -112,6 +113,7 @@ class DdsSummarizer:
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
+        drift: dict[str, DriftSums] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -125,11 +127,11 @@ class DdsSummarizer:
                     problems.append(problem)
                 else:
                     scores[record.name] = scores_from_status(record.values)
-                    read_pairs(record, pairs, motion)
+                    read_pairs(record, pairs, motion, drift)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion)
+        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion, drift)
 
     def add(
         self,
@@ -140,12 +142,13 @@ class DdsSummarizer:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        drift: Mapping[str, DriftSums] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups.
 
         ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency);
         ``pairs``, ``motion``: per method, the pair ending at the frame (``temporal``) and its
-        ego-motion residual (``egomotion``).
+        ego-motion residual (``egomotion``); ``drift``: that pair's LiDAR drift.
         """
         summary = None
         with self._lock:
@@ -164,7 +167,7 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores, arrivals, pairs, motion)
+                summary = self.core.add(stamp, scores, arrivals, pairs, motion, drift)
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)

@@ -496,8 +496,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
 def motion_records(
     sequence: str, pairs: Iterable[MotionPair], kept: Collection[int]
 ) -> list[FrameMotion]:
-    """The ego-motion pairs whose later frame a unit keeps, as records to store."""
-    return [FrameMotion(sequence, p.stamp, p.method, p.previous, p.sums) for p in pairs
+    """The ego-motion pairs (and their drift) whose later frame a unit keeps, to store."""
+    return [FrameMotion(sequence, p.stamp, p.method, p.previous, p.sums, p.drift) for p in pairs
             if p.stamp in kept]  # fmt: skip
 
 

@@ -15,7 +15,7 @@ from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.core.temporal import PRESETS
 from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
 from dispeval_ros.stream.join import LATENESS_RULE
-from dispeval_ros.stream.pairs import PAIR_GAP_RULE
+from dispeval_ros.stream.pairs import DRIFT_RULE, PAIR_GAP_RULE
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.topics import (
     ERROR_COLOR_LEAF,
@@ -247,7 +247,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "Also score each method's ego-motion residual over the same pairs (ground-truth-free "
         "temporal noise on gtfree:* criteria, not bias): the estimate moved by the camera's "
         "motion, from /tf and /tf_static (tf2_msgs) or odometry_topic. Needs the CameraInfo "
-        "topics",
+        f"topics. {DRIFT_RULE[0].upper()}{DRIFT_RULE[1:]}",
     ),
     Param(
         "odometry_topic",

@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 
 from dispeval_ros.core import Scores
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import DispevalError, ResultsConflictError
 from dispeval_ros.io.messages import stamp_ns
@@ -120,6 +121,7 @@ class SummarizerNode(Node):
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
+        drift: dict[str, DriftSums] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -134,7 +136,7 @@ class SummarizerNode(Node):
                         problems.append((stamp, *problem))
                     else:
                         frame[record.name] = scores_from_status(record.values)
-                        read_pairs(record, pairs, motion)
+                        read_pairs(record, pairs, motion, drift)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
@@ -151,7 +153,7 @@ class SummarizerNode(Node):
             if not frame and not arrivals:
                 return
             try:
-                summary = self._core.add(stamp, frame, arrivals, pairs, motion)
+                summary = self._core.add(stamp, frame, arrivals, pairs, motion, drift)
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

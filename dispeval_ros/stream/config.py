@@ -21,6 +21,7 @@ from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
 from dispeval_ros.core.egomotion import EgoMotionOptions
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, Evaluator
 from dispeval_ros.core.gtfree import DEFAULT_GT_FREE_CRITERIA, GT_FREE_SCORED, GroundTruthFree
+from dispeval_ros.core.lidar_drift import DriftOptions
 from dispeval_ros.core.measures import DEPTH_MEASURES, SEQUENCE_MEASURES
 from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.core.temporal import PRESETS
@@ -443,7 +444,8 @@ class CoreConfig:
         if self.temporal is None and not self.egomotion:
             return None
         motion = EgoMotionOptions() if self.egomotion else None
-        return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns, motion)
+        drift = DriftOptions.of_run(self.missing, self.delta) if self.pointcloud else None
+        return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns, motion, drift)
 
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones).

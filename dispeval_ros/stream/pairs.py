@@ -20,10 +20,13 @@ With ``egomotion`` the same pairs also give each method's ego-motion residual
 (:func:`~dispeval_ros.core.egomotion.egomotion_residual`: ground-truth-free temporal noise, on
 the ``gtfree:`` criteria of the earlier frame's images), the camera's motion between the two
 stamps taken from :attr:`PairStage.motion`; a pair whose motion cannot be looked up is one
-problem line. A pair waits (up to :data:`MOTION_WAIT` pairs) until :attr:`PairStage.ready`
-says the motion source holds its later stamp (``/tf`` is often logged after the frame), and
-:meth:`PairStage.finish` scores those still waiting at the end of a stream. Nothing here
-knows of ROS or files.
+problem line. Where both frames' ground truth is a projected LiDAR scan (``drift``), the same
+pair and motion also give each method's LiDAR drift between the scans
+(:func:`~dispeval_ros.core.lidar_drift.lidar_drift`, on the ``drift:`` criteria of the earlier
+scan's partition, as ``eval --scene --egomotion`` scores it). A pair waits (up to
+:data:`MOTION_WAIT` pairs) until :attr:`PairStage.ready` says the motion source holds its
+later stamp (``/tf`` is often logged after the frame), and :meth:`PairStage.finish` scores
+those still waiting at the end of a stream. Nothing here knows of ROS or files.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from dispeval_ros.core.egomotion import (
     prepare_frame,
 )
 from dispeval_ros.core.evaluator import Evaluator, Reference
+from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, coded_estimate, lidar_drift
 from dispeval_ros.core.temporal import PairScores, PreparedEstimate, TemporalScorer
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.messages import rectified_camera_from_info
@@ -58,6 +62,12 @@ PAIR_GAP_RULE = (
     "frame or a pause ends the run of pairs)"
 )
 """The pair gap's meaning, as every front end's help says it."""
+DRIFT_RULE = (
+    "with point-cloud ground truth also each method's LiDAR drift between scans over the same "
+    "pairs (drift:* criteria: the change of its error from scan t to scan t+1, temporal noise, "
+    "not accuracy)"
+)
+"""When the ego-motion pairs also give the LiDAR drift, as every front end's help says it."""
 MOTION_WAIT = 8
 """Ego-motion pairs kept waiting for the motion source at most (then the oldest is scored
 with what it holds): bounds memory when ``/tf`` lags or never comes."""
@@ -76,6 +86,8 @@ class MethodPairInput:
     """For the pair measures with GT (``temporal``)."""
     motion: MotionFrame | None = None
     """For the ego-motion residual (``egomotion``)."""
+    coded: np.ndarray | None = None
+    """For the LiDAR drift (``drift``): the estimate coded under the run's missing policy."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +116,8 @@ class MotionPair:
     previous: int
     method: str
     sums: TemporalSums
+    drift: DriftSums | None = None
+    """The LiDAR drift of the same pair (None: not scored, e.g. no LiDAR ground truth)."""
 
 
 @dataclass(frozen=True)
@@ -127,7 +141,8 @@ class PairStage:
     """Keeps the last frame of a stream and scores the pairs ending at each next frame.
 
     ``preset``: the pair measures with GT (None: not scored); ``egomotion``: the ego-motion
-    residual's options (None: not scored). Not thread-safe: call :meth:`add` from one thread,
+    residual's options (None: not scored); ``drift``: the LiDAR drift's, with ``egomotion``
+    and a LiDAR ground truth (None: not scored). Not thread-safe: call :meth:`add` from one thread,
     in the join's order of the frames; :meth:`prepare` may run on any thread.
     """
 
@@ -137,9 +152,11 @@ class PairStage:
         preset: str | None,
         gap_ns: int = DEFAULT_PAIR_GAP_NS,
         egomotion: EgoMotionOptions | None = None,
+        drift: DriftOptions | None = None,
     ) -> None:
         self.scorer = None if preset is None else TemporalScorer(evaluator, preset=preset)
         self.egomotion = egomotion
+        self.drift = drift if egomotion is not None else None
         self.gap_ns = gap_ns
         self.motion: Motion | None = None
         """Where the ego-motion residual takes the camera's motion from (the front end sets
@@ -165,15 +182,15 @@ class PairStage:
         prepared = None
         if self.scorer is not None:
             prepared = self.scorer.prepare(estimate, est_range=est_range, est_offset=est_offset)
-        motion = None
+        motion, coded = None, None
         if self.egomotion is not None:
+            disparity = motion_disparity(estimate, est_range, est_offset)
             motion = prepare_frame(
-                motion_disparity(estimate, est_range, est_offset),
-                image,
-                valid_range=(-np.inf, np.inf),
-                options=self.egomotion,
+                disparity, image, valid_range=(-np.inf, np.inf), options=self.egomotion
             )
-        return MethodPairInput(prepared, motion)
+            if self.drift is not None:
+                coded = coded_estimate(disparity, self.drift.missing)
+        return MethodPairInput(prepared, motion, coded)
 
     def add(self, frame: PairInput) -> PairOutcome:
         """The pairs (previous frame, ``frame``) of every method; ``frame`` becomes the previous."""
@@ -284,10 +301,30 @@ class PairStage:
                 residual = egomotion_residual(
                     first, second, moved, previous.camera, previous.partition, self.egomotion
                 )
-                sums.append(MotionPair(stamp, before, method, residual))
             except DispevalError as error:
                 problems.append((method, f"{method}: {where}: {error}"))
+                continue
+            try:
+                drift = self._drift(previous, frame, method, moved)
+            except DispevalError as error:  # the residual is kept: the drift alone is lost
+                problems.append((method, f"{method}: no LiDAR drift {before} → {stamp}: {error}"))
+                drift = None
+            sums.append(MotionPair(stamp, before, method, residual, drift))
         return sums
+
+    def _drift(
+        self, previous: PairInput, frame: PairInput, method: str, moved: np.ndarray
+    ) -> DriftSums | None:
+        """One method's LiDAR drift of the pair (None: no drift options or no scan in either)."""
+        first, second = previous.estimates[method].coded, frame.estimates[method].coded
+        scan, target = previous.reference, frame.reference
+        if self.drift is None or first is None or second is None or scan is None:
+            return None
+        if target is None or previous.camera is None:
+            return None
+        return lidar_drift(
+            scan.gt, target.gt, first, second, moved, previous.camera, scan.partition, self.drift
+        )
 
 
 def camera_view(

@@ -17,6 +17,7 @@ import numpy as np
 
 from dispeval_ros.core import Scores
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.objectives import is_pair_measure
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.core.records import (
@@ -165,6 +166,7 @@ class SummarizerCore:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        drift: Mapping[str, DriftSums] | None = None,
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
@@ -173,10 +175,11 @@ class SummarizerCore:
         bag`` keeps its arrival too. Without scores only the arrivals are recorded. ``pairs``:
         per method, the pair ending at this frame (the earlier frame's stamp, its scores), stored
         with the unit as ``dispeval bag --temporal`` stores it; ``motion``: likewise its
-        ego-motion residual.
+        ego-motion residual, and ``drift`` that pair's LiDAR drift.
         """
+        drifts = drift or {}
         self._motion.extend(
-            FrameMotion(self.sequence, int(stamp), method, previous, sums)
+            FrameMotion(self.sequence, int(stamp), method, previous, sums, drifts.get(method))
             for method, (previous, sums) in (motion or {}).items()
         )
         self._pairs.extend(

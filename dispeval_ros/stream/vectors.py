@@ -30,6 +30,7 @@ from dispeval_ros.errors import ConfigurationError, InputError
 
 if TYPE_CHECKING:
     from dispeval_ros.core.egomotion import TemporalSums
+    from dispeval_ros.core.lidar_drift import DriftSums
     from dispeval_ros.core.temporal import PairScores
     from dispeval_ros.stream.core import FrameResult
 
@@ -61,6 +62,12 @@ free, so on ``gtfree:`` criteria), its sums ``.../motion_sums``, ``_motion_offse
 ``_motion_thresholds``; the earlier frame is :data:`PAIR_PREVIOUS_KEY`'s."""
 MOTION_SUMS_KEY = "motion_sums"
 MOTION_META = ("_motion_thresholds", "_motion_offset")
+DRIFT_KEY_PREFIX = "lidar_drift/"
+"""The LiDAR drift of that pair (LiDAR GT): ``lidar_drift/drift:CRITERION/VALUE`` (on the
+``drift:`` criteria: temporal noise, never accuracy), its sums ``.../drift_sums`` and
+:data:`DRIFT_META` (thresholds, missing policy, hidden test ``W,G``)."""
+DRIFT_SUMS_KEY = "drift_sums"
+DRIFT_META = ("_drift_thresholds", "_drift_policy", "_drift_visibility")
 META_KEYS = (
     "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
     DELAY_KEY,
@@ -177,13 +184,15 @@ def scores_status(
     arrival: int | None = None,
     pair: tuple[int, PairScores] | None = None,
     motion: tuple[int, TemporalSums] | None = None,
+    drift: DriftSums | None = None,
 ) -> StatusRecord:
     """The status of one method on one frame: every ``criterion/measure`` plus raw sums.
 
     With ``arrival`` (and ``estimate_stamp``): when the estimate arrived and its delay, so a
     summarizer stores the latency as ``dispeval bag`` does (:func:`arrival_of`). With ``pair``
     (the earlier frame's stamp, the pair's scores): the pair measures (:data:`PAIR_PREFIX`);
-    with ``motion`` (the same stamp, the residual's sums): :data:`MOTION_PREFIX`'s keys.
+    with ``motion`` (the same stamp, the residual's sums): :data:`MOTION_PREFIX`'s keys;
+    with ``drift`` (that pair's LiDAR drift): :data:`DRIFT_KEY_PREFIX`'s.
     """
     values: list[tuple[str, str]] = []
     level = OK
@@ -209,6 +218,8 @@ def scores_status(
         values.extend(pair_values(*pair))
     if motion is not None:
         values.extend(motion_values(*motion, with_previous=pair is None))
+    if drift is not None:
+        values.extend(drift_values(drift))
     delay = _timing_values(values, estimate_stamp, arrival)
     if delay is not None:
         found = OK if alarms is None else alarms.level(DELAY_ALARM, delay)
@@ -264,15 +275,57 @@ def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, Temporal
         raise InputError("the diagnostic status has malformed ego-motion keys") from None
 
 
+def drift_values(drift: DriftSums) -> list[tuple[str, str]]:
+    """The keys of a pair's LiDAR drift (read back by :func:`drift_from_status`)."""
+    from dispeval_ros.core.lidar_drift import PREFIX
+
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(drift.criteria, drift.sums, strict=True):
+        name = f"{DRIFT_KEY_PREFIX}{PREFIX}{criterion}/"
+        values.extend((name + k, format_number(v)) for k, v in drift.summary(criterion).items())
+        values.append((name + DRIFT_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    options = drift.options
+    meta = (
+        " ".join(format_number(t) for t in drift.thresholds),
+        "" if options is None else options.missing,
+        "" if options is None else str(options.visibility),
+    )
+    return values + list(zip(DRIFT_META, meta, strict=True))
+
+
+def drift_from_status(values: Sequence[tuple[str, str]]) -> DriftSums | None:
+    """The LiDAR drift sums of a status with them, else None (its pair: the residual's)."""
+    from dispeval_ros.core.lidar_drift import PREFIX, DriftSums
+
+    table = dict(values)
+    if DRIFT_META[0] not in table:
+        return None
+    suffix, start = "/" + DRIFT_SUMS_KEY, len(DRIFT_KEY_PREFIX) + len(PREFIX)
+    keys = [k for k, _ in values if k.startswith(DRIFT_KEY_PREFIX) and k.endswith(suffix)]
+    try:
+        thresholds, policy, visibility = (table[key] for key in DRIFT_META)
+        sums = np.array([float(v) for k in keys for v in table[k].split()])
+        criteria = [k[start : -len(suffix)] for k in keys]
+        levels = [float(t) for t in thresholds.split()]
+        return DriftSums.restored(criteria, sums, policy, visibility, levels)
+    except (KeyError, ValueError):
+        raise InputError("the diagnostic status has malformed LiDAR drift keys") from None
+
+
 def read_pairs(
     record: StatusRecord,
     pairs: dict[str, tuple[int, PairScores]],
     motion: dict[str, tuple[int, TemporalSums]],
+    drift: dict[str, DriftSums] | None = None,
 ) -> None:
-    """Add a method status's pair and ego-motion residual, where it has them, by its name.
+    """Add a method status's pair, ego-motion residual and drift, where it has them, by name.
 
     What every summarizer reads of a status beside its scores (:func:`scores_from_status`).
     """
+    if drift is not None:
+        found = drift_from_status(record.values)
+        if found is not None:
+            drift[record.name] = found
     pair = pair_from_status(record.values)
     if pair is not None:
         pairs[record.name] = pair
@@ -307,9 +360,9 @@ def result_statuses(
 ) -> list[StatusRecord]:
     """The status of each method scored on a frame, with its latency and its pair, if any."""
     previous = result.pair_previous
-    motion = {
-        p.method: (p.previous, p.sums) for p in result.motion_pairs if p.stamp == result.stamp
-    }
+    here = [p for p in result.motion_pairs if p.stamp == result.stamp]
+    motion = {p.method: (p.previous, p.sums) for p in here}
+    drift = {p.method: p.drift for p in here}
     return [
         scores_status(
             method,
@@ -322,6 +375,7 @@ def result_statuses(
             if previous is None or method not in result.pairs
             else (previous, result.pairs[method]),
             motion.get(method),
+            drift.get(method),
         )
         for method, scores in result.scores.items()
     ]

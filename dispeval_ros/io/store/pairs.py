@@ -18,9 +18,10 @@ from operator import add
 import numpy as np
 
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.records import FrameMotion, FramePair
 from dispeval_ros.core.temporal import PairScores
-from dispeval_ros.errors import InputError
+from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store.schema import _BLOB
 
 
@@ -137,6 +138,66 @@ def read_motion(
     return {
         m: (len(found[m]), reduce(add, [s for _, s in found[m]])) for m in _in_order(found, methods)
     }
+
+
+def drift_rows(sequence: str, unit: str, pairs: Iterable[FrameMotion]) -> list[tuple[object, ...]]:
+    """The ``drift_pairs`` rows of a unit's ego-motion pairs that carry a LiDAR drift.
+
+    Each row holds the policy and visibility test it was scored under, so a reader gives the
+    summary's options without the run's configuration.
+    """
+    rows: list[tuple[object, ...]] = []
+    for pair in pairs:
+        drift = pair.drift
+        if drift is None:
+            continue
+        if pair.sequence != sequence:
+            raise ValueError(f"unit '{unit}' of {sequence} holds a pair of {pair.sequence}")
+        if drift.options is None:
+            raise ValueError(f"{pair.method} at {pair.stamp}: a drift without its options")
+        rows.append(
+            (
+                sequence,
+                int(pair.stamp),
+                pair.method,
+                int(pair.previous),
+                json.dumps(list(drift.criteria)),
+                np.asarray(drift.thresholds, dtype=_BLOB).tobytes(),
+                drift.options.missing,
+                str(drift.options.visibility),
+                np.ascontiguousarray(drift.sums, dtype=_BLOB).tobytes(),
+            )
+        )
+    return rows
+
+
+def read_drift(
+    connection: sqlite3.Connection, where: str, sequence: str, methods: Sequence[str]
+) -> dict[str, tuple[int, DriftSums]]:
+    """Per method: its drift pairs in the sequence and their sums pooled (with their options).
+
+    A row that does not read back, or rows of one method that cannot be pooled (other
+    options or criteria), is one line naming the database.
+    """
+    rows = connection.execute(
+        "SELECT method, criteria, thresholds, policy, visibility, sums FROM drift_pairs "
+        "WHERE sequence = ? ORDER BY stamp",
+        (sequence,),
+    )
+    found: dict[str, list[DriftSums]] = {}
+    for method, criteria, thresholds, policy, visibility, blob in rows:
+        levels = np.frombuffer(thresholds, dtype=_BLOB).tolist()
+        try:
+            one = DriftSums.restored(
+                json.loads(criteria), np.frombuffer(blob, _BLOB), policy, visibility, levels
+            )
+        except ValueError:
+            raise InputError(f"{where}: a stored drift row of {method} is damaged") from None
+        found.setdefault(method, []).append(one)
+    try:
+        return {m: (len(found[m]), reduce(add, found[m])) for m in _in_order(found, methods)}
+    except ConfigurationError as error:
+        raise InputError(f"{where}, sequence {sequence}: {error}") from None
 
 
 def _in_order(found: Mapping[str, object], methods: Sequence[str]) -> list[str]:

@@ -13,16 +13,24 @@ from typing import TypeVar
 import numpy as np
 
 from dispeval_ros.core.egomotion import TemporalSums
+from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.measures import Scores, quantile_level
 from dispeval_ros.core.records import FrameTiming, MatchCounts, Problem
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import ConfigurationError, InputError
 from dispeval_ros.io.store.lock import _FolderLock
-from dispeval_ros.io.store.pairs import motion_series, pair_series, read_motion, read_pairs
+from dispeval_ros.io.store.pairs import (
+    motion_series,
+    pair_series,
+    read_drift,
+    read_motion,
+    read_pairs,
+)
 from dispeval_ros.io.store.schema import (
     _BLOB,
     _FRAME_ORDER,
     _ORDERED_FRAMES,
+    DRIFT_TABLE,
     MOTION_TABLE,
     PAIRS_TABLE,
     RESULTS_FILE,
@@ -373,6 +381,16 @@ class ResultsReader:
         if not self.records_motion():
             return None
         return read_motion(self._db, str(self.path), sequence, self._names("methods"))
+
+    def records_drift(self) -> bool:
+        """Whether LiDAR drifts can be stored (a database older than them: no)."""
+        return has_table(self._db, DRIFT_TABLE)
+
+    def drift_pairs(self, sequence: str) -> dict[str, tuple[int, DriftSums]] | None:
+        """Per method: its LiDAR drift pairs in ``sequence``, pooled (None: not recorded)."""
+        if not self.records_drift():
+            return None
+        return read_drift(self._db, str(self.path), sequence, self._names("methods"))
 
     def pair_series(self, sequence: str) -> dict[str, list[tuple[int, PairScores]]] | None:
         """Per method, the sequence's pairs one by one (stamp, scores); None: not recorded."""

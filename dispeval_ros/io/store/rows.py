@@ -17,7 +17,7 @@ from dispeval_ros.core.records import (
     Problem,
 )
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.io.store.pairs import motion_rows, pair_rows
+from dispeval_ros.io.store.pairs import drift_rows, motion_rows, pair_rows
 from dispeval_ros.io.store.schema import _BLOB, _Layout
 
 
@@ -36,6 +36,7 @@ class PreparedUnit:
     timing_rows: list[tuple[object, ...]] = field(default_factory=list)
     pair_rows: list[tuple[object, ...]] = field(default_factory=list)
     motion_rows: list[tuple[object, ...]] = field(default_factory=list)
+    drift_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -93,6 +94,7 @@ def prepare_unit(
         timing_rows,
         pair_rows(sequence, unit, pairs),
         motion_rows(sequence, unit, motion),
+        drift_rows(sequence, unit, motion),
     )
 
 

@@ -86,6 +86,18 @@ _MOTION_SCHEMA = (
 made with a new database as ``pairs``."""
 _INSERT_MOTION = f"INSERT INTO motion_pairs ({_MOTION_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
 _SELECT_MOTION = f"SELECT {_MOTION_COLUMNS} FROM motion_pairs"
+DRIFT_TABLE = "drift_pairs"
+_DRIFT_COLUMNS = "sequence, stamp, method, previous, criteria, thresholds, policy, visibility, sums"
+_DRIFT_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS drift_pairs (sequence TEXT NOT NULL, stamp INTEGER NOT NULL, "
+    "method TEXT NOT NULL, previous INTEGER NOT NULL, criteria TEXT NOT NULL, "
+    "thresholds BLOB NOT NULL, policy TEXT NOT NULL, visibility TEXT NOT NULL, "
+    "sums BLOB NOT NULL, PRIMARY KEY (sequence, stamp, method))"
+)
+"""Each method's LiDAR drift sums of an ego-motion pair (``egomotion`` with LiDAR GT), beside
+``motion_pairs``; made with a new database as ``pairs`` (an older one reads as not recorded)."""
+_INSERT_DRIFT = f"INSERT INTO drift_pairs ({_DRIFT_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_DRIFT = f"SELECT {_DRIFT_COLUMNS} FROM drift_pairs"
 
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
@@ -325,7 +337,8 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        for statement in (*_SCHEMA, _TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA):
+        later = (_TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _DRIFT_SCHEMA)
+        for statement in (*_SCHEMA, *later):
             connection.execute(statement)
         connection.executemany(
             "INSERT INTO run (key, ordinal, value) VALUES (?, ?, ?)",

@@ -24,13 +24,16 @@ from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
+    _INSERT_DRIFT,
     _INSERT_MOTION,
     _INSERT_PAIR,
     _INSERT_TIMING,
     _PROVENANCE_TABLE,
+    _SELECT_DRIFT,
     _SELECT_MOTION,
     _SELECT_PAIRS,
     _SELECT_TIMING,
+    DRIFT_TABLE,
     FAILED_MARK,
     MOTION_TABLE,
     PAIRS_TABLE,
@@ -206,6 +209,7 @@ class ResultsWriter(ResultsReader):
                 (self.records_timing(), _INSERT_TIMING, timing, "the arrival of an estimate"),
                 (self.records_pairs(), _INSERT_PAIR, pairs, "a pair"),
                 (self.records_motion(), _INSERT_MOTION, prepared.motion_rows, "a motion pair"),
+                (self.records_drift(), _INSERT_DRIFT, prepared.drift_rows, "a drift pair"),
             )
             for recorded, statement, rows, what in later_tables:
                 if not (rows and recorded):
@@ -304,6 +308,7 @@ class ResultsWriter(ResultsReader):
                 (TIMING_TABLE, _INSERT_TIMING, _SELECT_TIMING, "arrival times"),
                 (PAIRS_TABLE, _INSERT_PAIR, _SELECT_PAIRS, "pairs"),
                 (MOTION_TABLE, _INSERT_MOTION, _SELECT_MOTION, "ego-motion pairs"),
+                (DRIFT_TABLE, _INSERT_DRIFT, _SELECT_DRIFT, "drift pairs"),
             ):
                 self._add_later_table(other, table, insert, select, what)
         self._layout = self._read_layout()
