@@ -37,6 +37,8 @@ from dispeval_ros.core.timing import Timing, benchmark_keys, timing_of
 from dispeval_ros.errors import ConfigurationError
 
 GRANULARITIES = ("sequence", "frame")
+FLICKER_LABEL = "temporal noise of a static camera, not accuracy"
+"""What every flicker output says it is (summary.json, tables, /dispeval/scores' help)."""
 
 
 @dataclass
@@ -57,6 +59,30 @@ class SequenceSummary:
 
     motion: dict[str, tuple[int, TemporalSums]] | None = None
     """Per method: its ego-motion pairs and their residual sums pooled (``egomotion``)."""
+
+    flicker: dict[str, tuple[int, int, TemporalSums]] | None = None
+    """Per method: its flicker windows, their frames and their sums pooled (``flicker``)."""
+
+    def flicker_dict(self) -> dict[str, Any] | None:
+        """The JSON ``flicker`` entry: what it is, per method its windows and ``gtfree:`` values."""
+        if self.flicker is None:
+            return None
+        return {
+            "label": FLICKER_LABEL,
+            "methods": {
+                method: {
+                    "windows": windows,
+                    "frames": frames,
+                    "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
+                    "columns": list(sums.columns),
+                    "sums": {
+                        GT_FREE_PREFIX + c: row.tolist()
+                        for c, row in zip(sums.criteria, sums.sums, strict=True)
+                    },
+                }
+                for method, (windows, frames, sums) in self.flicker.items()
+            },
+        }
 
     def egomotion_dict(self) -> dict[str, Any] | None:
         """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
@@ -96,6 +122,8 @@ class RunSummary:
     """The temporal preset the run scored pairs under (None: no ``--temporal``)."""
     egomotion: bool = False
     """Whether the run scored the ego-motion residual of its pairs."""
+    flicker: bool = False
+    """Whether the run scored flicker windows."""
 
     def benchmark_document(self) -> dict[str, Any]:
         """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
@@ -128,6 +156,7 @@ class RunSummary:
                     else {m: t.to_dict() for m, t in s.timing.items()},
                     **({"temporal": s.temporal_dict()} if self.temporal else {}),
                     **({"egomotion": s.egomotion_dict()} if self.egomotion else {}),
+                    **({"flicker": s.flicker_dict()} if self.flicker else {}),
                 }
                 for s in self.sequences
             ],
@@ -212,6 +241,14 @@ def sequence_motion(store: object, sequence: str) -> dict[str, tuple[int, Tempor
     """Per method, its ego-motion pairs in ``sequence`` (None: not recorded, or live totals)."""
     reader = getattr(store, "motion_pairs", None)
     return reader(sequence) if reader else None
+
+
+def sequence_flicker(
+    store: object, sequence: str
+) -> dict[str, tuple[int, int, TemporalSums]] | None:
+    """Per method, its flicker windows in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "flicker", None)
+    return reader(sequence) if callable(reader) else None
 
 
 def sequence_pairs(store: object, sequence: str) -> dict[str, PairScores] | None:
@@ -299,6 +336,7 @@ def summarize(
                 timing,
                 pairs,
                 motion,
+                sequence_flicker(store, sequence),
             )
         )
         if names:
@@ -313,8 +351,18 @@ def summarize(
     config = getattr(store, "config", None)
     egomotion = bool(config().get("egomotion")) if callable(config) else False
     egomotion = egomotion or any(s.motion for s in summaries)
+    flicker = bool(config().get("flicker")) if callable(config) else False
+    flicker = flicker or any(s.flicker for s in summaries)
     return RunSummary(
-        granularity, list(measures), summaries, all_names, overall, matrix, temporal, egomotion
+        granularity,
+        list(measures),
+        summaries,
+        all_names,
+        overall,
+        matrix,
+        temporal,
+        egomotion,
+        flicker,
     )
 
 

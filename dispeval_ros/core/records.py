@@ -15,7 +15,10 @@ if TYPE_CHECKING:
     from dispeval_ros.core.measures import Scores
     from dispeval_ros.core.temporal import PairScores
 
-__all__ = ["FrameMotion", "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+__all__ = [
+    "FrameFlicker",
+    "FrameMotion",
+    "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,18 @@ class FrameMotion:
     stamp: int
     method: str
     previous: int
+    sums: TemporalSums
+
+
+@dataclass(frozen=True)
+class FrameFlicker:
+    """One method's flicker sums over one window of ``frames`` frames, ``start`` to ``stamp``."""
+
+    sequence: str
+    start: int
+    stamp: int
+    method: str
+    frames: int
     sums: TemporalSums
 
 

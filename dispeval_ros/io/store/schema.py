@@ -86,6 +86,17 @@ _MOTION_SCHEMA = (
 made with a new database as ``pairs``."""
 _INSERT_MOTION = f"INSERT INTO motion_pairs ({_MOTION_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
 _SELECT_MOTION = f"SELECT {_MOTION_COLUMNS} FROM motion_pairs"
+FLICKER_TABLE = "flicker_windows"
+_FLICKER_COLUMNS = "sequence, start, method, stamp, frames, criteria, thresholds, sums"
+_FLICKER_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS flicker_windows (sequence TEXT NOT NULL, start INTEGER NOT "
+    "NULL, method TEXT NOT NULL, stamp INTEGER NOT NULL, frames INTEGER NOT NULL, criteria TEXT "
+    "NOT NULL, thresholds BLOB NOT NULL, sums BLOB NOT NULL, PRIMARY KEY (sequence, start, method))"
+)
+"""Each method's flicker sums of a window (``flicker``), ``start`` and ``stamp`` its first and
+last frames' stamps; made with a new database as ``pairs``."""
+_INSERT_FLICKER = f"INSERT INTO flicker_windows ({_FLICKER_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_FLICKER = f"SELECT {_FLICKER_COLUMNS} FROM flicker_windows"
 
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
@@ -325,7 +336,8 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        for statement in (*_SCHEMA, _TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA):
+        later = (_TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _FLICKER_SCHEMA)
+        for statement in (*_SCHEMA, *later):
             connection.execute(statement)
         connection.executemany(
             "INSERT INTO run (key, ordinal, value) VALUES (?, ?, ?)",
