@@ -107,7 +107,8 @@ class _Open:
 
 def window_text(method: str, stamps: list[int]) -> str:
     """``sgbm: flicker window 100 → 300 (3 frames)``, the wording of every flicker problem."""
-    return f"{method}: flicker window {stamps[0]} → {stamps[-1]} ({len(stamps)} frames)"
+    count = f"{len(stamps)} frame{'' if len(stamps) == 1 else 's'}"
+    return f"{method}: flicker window {stamps[0]} → {stamps[-1]} ({count})"
 
 
 class FlickerStage:
@@ -168,8 +169,8 @@ class FlickerStage:
                     "not used for flicker; it ends every flicker window",
                 )
             )
-            for method in list(self._open):
-                self._close(method, f"the next frame ({stamp}) is out of order", out)
+            for method in list(self._open):  # (the line above says why)
+                self._close(method, f"the next frame ({stamp}) is out of order", out, say=False)
             self._last = stamp
             self._resolve(out)
             return out
@@ -195,10 +196,9 @@ class FlickerStage:
             if current.window is not None:
                 try:
                     current.window.add(prepared)
-                except DispevalError as error:
+                except DispevalError as error:  # (another size, an image missing)
                     current.stamps.pop()
-                    out.problems.append((method, f"{method} at {stamp}: {error}; not in flicker"))
-                    self._close(method, f"{method} at {stamp} does not fit it", out)
+                    self._close(method, f"{method} at {stamp} does not fit it: {error}", out)
                     continue
             if len(current.stamps) == self.size:
                 self._close(method, None, out)
@@ -209,14 +209,14 @@ class FlickerStage:
         """End of stream: every open window closed and every waiting one scored."""
         out = FlickerOutcome()
         for method in list(self._open):
-            self._close(method, None, out, full=False)
+            self._close(method, None, out)
         self._resolve(out, final=True)
         return out
 
     def _close(
-        self, method: str, reason: str | None, out: FlickerOutcome, *, full: bool = True
+        self, method: str, reason: str | None, out: FlickerOutcome, *, say: bool = True
     ) -> None:
-        """End ``method``'s window (``reason``: why early, said in one line) and queue it."""
+        """End ``method``'s window and queue it; ``reason``: why early (one line if ``say``)."""
         current = self._open.pop(method)
         if not current.stamps:
             return
@@ -225,7 +225,7 @@ class FlickerStage:
             cause = f"ended by {reason}" if reason else "ended by the end of the stream"
             out.problems.append((method, f"{what} {cause}: not scored (at least 2 needed)"))
             return
-        if reason is not None:
+        if reason is not None and say:
             out.problems.append((method, f"{what} ended early: {reason}"))
         if current.window is None:
             out.problems.append(

@@ -1,0 +1,204 @@
+"""``dispeval bag --flicker``: a static camera's flicker from a bag, checked against numpy.
+
+The bag is make-bag's synthetic rig standing still: every frame has the same pose on /tf
+(odom → base_link) and the same ground truth, a smooth plane (no depth edge), and its images
+carry per-frame sensor noise of at most ±3 grey levels (below the photometric threshold), so
+no mask applies and every pixel counts. Methods: ``true`` publishes the ground truth,
+``noisy`` the ground truth plus per-frame noise N(0, σ), ``biased`` the same plus 1.5 px.
+Each stored window equals ``np.std(stack, axis=0, ddof=1)`` of the maps the bag was made of;
+the pooled flicker is the sum of its windows; a moving camera (with --egomotion) is said and
+not scored; a window of one frame is refused in one line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dispeval_ros.cli.main import main
+from dispeval_ros.io.store import ResultsStore
+from dispeval_ros.offline.make_bag import (
+    GT_TOPIC,
+    LEFT_IMAGE,
+    LEFT_INFO,
+    RIGHT_IMAGE,
+    RIGHT_INFO,
+    disparity_topic,
+    estimates_from,
+    synthetic_frames,
+    write_bag,
+)
+from dispeval_ros.testbed.methods import default_methods
+
+FRAMES, WIDTH, HEIGHT, SIGMA, BIAS = 10, 96, 48, 0.3, 1.5
+METHODS = ("true", "noisy", "biased")
+PLANE = (20.0 + 0.02 * np.arange(WIDTH, dtype=np.float32))[None, :].repeat(HEIGHT, 0)
+
+
+def c4(n: int) -> float:
+    """E[s] / σ of the sample std of n normal samples (ddof 1)."""
+    return math.sqrt(2 / (n - 1)) * math.gamma(n / 2) / math.gamma((n - 1) / 2)
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """ROOT/static (the rig standing still) and ROOT/moving (the same frames, the drive's /tf)."""
+    root = tmp_path_factory.mktemp("flicker")
+    drive = list(synthetic_frames(FRAMES, WIDTH, HEIGHT, 10.0, seed=4))
+    first = drive[0]
+    rng = np.random.default_rng(1)
+
+    def shaken(image: np.ndarray) -> np.ndarray:  # sensor noise, |n| ≤ 3 grey levels
+        noise = rng.integers(-3, 4, image.shape)
+        return np.clip(image.astype(np.int64) + noise, 0, 255).astype(image.dtype)
+
+    still = [
+        dataclasses.replace(
+            f, left=shaken(first.left), right=shaken(first.right), gt=PLANE,
+            odometry=first.odometry,
+        )
+        for f in drive
+    ]  # fmt: skip
+    noise = np.random.default_rng(2)
+    for name in METHODS:
+        (root / name).mkdir()
+    for index in range(FRAMES):
+        shake = noise.normal(0, SIGMA, PLANE.shape).astype(np.float32)
+        maps = {"true": PLANE, "noisy": PLANE + shake, "biased": PLANE + shake + np.float32(BIAS)}
+        for name, values in maps.items():
+            np.save(root / name / f"{index:06d}.npy", values.astype(np.float32))
+    sources = [estimates_from(name, root / name) for name in METHODS]
+    for name, frames in (("static", still), ("moving", [
+        dataclasses.replace(s, odometry=d.odometry) for s, d in zip(still, drive, strict=True)
+    ])):  # fmt: skip
+        write_bag(root / name, iter(frames), storage="rosbag2-sqlite3",
+                  methods=default_methods(WIDTH)[:1], estimates=sources)  # fmt: skip
+    (root / "fb").write_text(repr(first.camera.fb))
+    return root
+
+
+def command(bag: Path, out: Path, *extra: str) -> list[str]:
+    return [
+        "bag", str(bag), "--gt", GT_TOPIC,
+        *(item for m in METHODS for item in ("--method", f"{m}={disparity_topic(m)}")),
+        "--camera-info", LEFT_INFO, RIGHT_INFO, "--left-image", LEFT_IMAGE,
+        "--right-image", RIGHT_IMAGE, "--gt-free-criteria", "all", "--criteria", "all",
+        "--out", str(out), "--quiet", *extra,
+    ]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def static_run(root: Path) -> Path:
+    assert main(command(root / "static", root / "res", "--flicker")) == 0
+    return root / "res"
+
+
+def maps(root: Path, method: str, indices: range) -> np.ndarray:
+    return np.stack([np.load(root / method / f"{i:06d}.npy").astype(np.float64) for i in indices])
+
+
+def test_each_window_equals_numpy_and_the_true_map_flickers_zero(
+    root: Path, static_run: Path
+) -> None:
+    fb = float((root / "fb").read_text())
+    with ResultsStore.open(static_run) as store:
+        series = store.flicker_series("static")
+    assert series is not None
+    assert set(series) == set(METHODS)
+    connection = sqlite3.connect(static_run / "results.sqlite")
+    stamps = [s for (s,) in connection.execute("SELECT DISTINCT stamp FROM frames ORDER BY stamp")]
+    connection.close()
+    for method in METHODS:
+        windows = series[method]
+        assert [(w.start, w.stamp, w.frames) for w in windows] == [
+            (stamps[0], stamps[4], 5), (stamps[5], stamps[9], 5),
+        ]  # fmt: skip
+        for window, indices in zip(windows, (range(0, 5), range(5, 10)), strict=True):
+            stack = maps(root, method, indices)
+            spread = np.std(stack, axis=0, ddof=1)
+            depth = np.std(fb / stack, axis=0, ddof=1)
+            sums = window.sums
+            assert sums.criteria == ("all",)
+            assert sums.column("all", "n_residual") == WIDTH * HEIGHT  # no mask applies
+            assert sums.column("all", "sum") == pytest.approx(spread.sum(), rel=1e-6, abs=1e-9)
+            assert sums.column("all", "sum_sq") == pytest.approx(
+                (spread**2).sum(), rel=1e-6, abs=1e-9
+            )
+            assert sums.column("all", "sum_abs_z") == pytest.approx(depth.sum(), rel=1e-5, abs=1e-9)
+            for t in sums.thresholds:
+                assert sums.column("all", f"bad_{t:g}") == np.count_nonzero(spread > t)
+            if method == "true":
+                assert sums.column("all", "sum_sq") == 0.0
+
+
+def test_summary_json_pools_the_windows_and_noise_reads_as_c4_sigma(static_run: Path) -> None:
+    document = json.loads((static_run / "summary.json").read_text())
+    entry = document["sequences"][0]["flicker"]
+    assert entry["label"] == "temporal noise of a static camera, not accuracy"
+    with ResultsStore.open(static_run) as store:
+        series = store.flicker_series("static")
+    assert series is not None
+    for method in METHODS:
+        mine = entry["methods"][method]
+        assert (mine["windows"], mine["frames"]) == (2, FRAMES)
+        added = series[method][0].sums.sums + series[method][1].sums.sums
+        assert mine["sums"]["gtfree:all"] == added[0].tolist()
+        assert mine["columns"] == list(series[method][0].sums.columns)
+    noisy = entry["methods"]["noisy"]["criteria"]["gtfree:all"]
+    biased = entry["methods"]["biased"]["criteria"]["gtfree:all"]
+    assert entry["methods"]["true"]["criteria"]["gtfree:all"]["mean"] == 0.0
+    assert noisy["mean"] == pytest.approx(c4(5) * SIGMA, rel=0.02)
+    assert biased["mean"] == pytest.approx(noisy["mean"], rel=1e-4)  # a bias is no flicker
+    assert biased["rms"] == pytest.approx(noisy["rms"], rel=1e-4)
+
+
+def test_a_camera_moving_on_tf_is_said_and_not_scored(root: Path) -> None:
+    out = root / "res-moving"
+    assert main(command(root / "moving", out, "--flicker", "--egomotion")) == 0
+    with ResultsStore.open(out) as store:
+        assert store.flicker_series("moving") == {}
+        problems = [p.message for p in store.problems("moving")]
+    moved = [p for p in problems if "not scored: the camera moved" in p]
+    assert len(moved) == 2 * len(METHODS)  # each window of each method, one line
+    assert "more than a static camera's 5 mm and 0.05°" in moved[0]
+
+
+def test_the_static_camera_on_tf_scores_as_without_it(root: Path, static_run: Path) -> None:
+    out = root / "res-tf"
+    assert main(command(root / "static", out, "--flicker", "--egomotion")) == 0
+    with ResultsStore.open(out) as store, ResultsStore.open(static_run) as plain:
+        mine, theirs = store.flicker("static"), plain.flicker("static")
+    assert mine is not None
+    assert theirs is not None
+    assert mine.keys() == theirs.keys()
+    for method, (windows, frames, sums) in mine.items():
+        assert (windows, frames) == theirs[method][:2]
+        assert np.array_equal(sums.sums, theirs[method][2].sums)
+
+
+def test_windows_never_span_units(root: Path, static_run: Path) -> None:
+    out = root / "res-units"
+    assert main(command(root / "static", out, "--flicker", "--slice", "0.3")) == 0
+    with ResultsStore.open(out) as store:
+        series = store.flicker_series("static")
+        problems = [p.message for p in store.problems("static")]
+    assert series is not None
+    counts = sorted(w.frames for w in series["noisy"])
+    singles = [p for p in problems if p.startswith("noisy:") and "(1 frame)" in p]
+    assert max(counts) <= 3
+    assert sum(counts) + len(singles) == FRAMES
+
+
+def test_a_window_of_one_frame_is_one_line(root: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(command(root / "static", root / "res-one", "--flicker", "1")) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "Traceback" not in err[0]
+    assert "--flicker must be 0 (off) or a window of at least 2 frames" in err[0]
+    assert not (root / "res-one" / "results.sqlite").exists()
