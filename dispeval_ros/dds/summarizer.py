@@ -41,6 +41,7 @@ from dispeval_ros.dds.wire import (
 )
 from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
@@ -112,6 +113,7 @@ class DdsSummarizer:
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
+        flicker: dict[str, FlickerScore] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -125,11 +127,11 @@ class DdsSummarizer:
                     problems.append(problem)
                 else:
                     scores[record.name] = scores_from_status(record.values)
-                    read_pairs(record, pairs, motion)
+                    read_pairs(record, pairs, motion, flicker)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion)
+        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion, flicker)
 
     def add(
         self,
@@ -140,6 +142,7 @@ class DdsSummarizer:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        flicker: Mapping[str, FlickerScore] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups.
 
@@ -164,7 +167,7 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores, arrivals, pairs, motion)
+                summary = self.core.add(stamp, scores, arrivals, pairs, motion, flicker)
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)

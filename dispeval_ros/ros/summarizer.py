@@ -41,6 +41,7 @@ from dispeval_ros.ros.lifecycle import run_node
 from dispeval_ros.ros.param_table import SUMMARIZER_PARAMETERS
 from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_options
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
@@ -120,6 +121,7 @@ class SummarizerNode(Node):
         arrivals: dict[str, tuple[int, int]] = {}
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
+        flicker: dict[str, FlickerScore] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -134,7 +136,7 @@ class SummarizerNode(Node):
                         problems.append((stamp, *problem))
                     else:
                         frame[record.name] = scores_from_status(record.values)
-                        read_pairs(record, pairs, motion)
+                        read_pairs(record, pairs, motion, flicker)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
@@ -151,7 +153,7 @@ class SummarizerNode(Node):
             if not frame and not arrivals:
                 return
             try:
-                summary = self._core.add(stamp, frame, arrivals, pairs, motion)
+                summary = self._core.add(stamp, frame, arrivals, pairs, motion, flicker)
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

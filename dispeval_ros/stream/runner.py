@@ -34,8 +34,8 @@ class LiveEvaluator:
     """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams.
 
     With ``workers`` > 1, results may be handed over out of stamp order; with a pair stage
-    (``temporal``, ``egomotion``) they are handed over in the join's order, each after its
-    pairs are scored.
+    (``temporal``, ``egomotion``) or flicker windows they are handed over in the join's order,
+    each after its pairs and windows are scored.
     """
 
     def __init__(
@@ -127,10 +127,10 @@ class LiveEvaluator:
             result: FrameResult | None = None
             try:
                 result = self.core.score(frame_set)
-                if self.core.pairs is None:
+                if not self.core.ordered:
                     self.on_result(result)
             finally:
-                if self.core.pairs is not None:
+                if self.core.ordered:
                     self._in_order(turn, result)
                 with self._lock:
                     self._busy -= 1
@@ -151,7 +151,7 @@ class LiveEvaluator:
                 ready = self._finished.pop(self._handed)
                 self._handed += 1
                 if ready is not None:
-                    self.core.pair(ready)
+                    self.core.window(self.core.pair(ready))
                     self.on_result(ready)
 
     def wait_idle(self, timeout: float | None = None) -> bool:

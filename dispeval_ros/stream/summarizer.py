@@ -20,6 +20,7 @@ from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.objectives import is_pair_measure
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.core.records import (
+    FrameFlicker,
     FrameMotion,
     FramePair,
     FrameScores,
@@ -32,6 +33,7 @@ from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import SUMMARY_JSON, TIMING_JSON, ResultsStore
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
 from dispeval_ros.summary import RunSummary, summarize
 
@@ -148,6 +150,7 @@ class SummarizerCore:
         self._timing: list[FrameTiming] = []
         self._pairs: list[FramePair] = []
         self._motion: list[FrameMotion] = []
+        self._flicker: list[FrameFlicker] = []
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
@@ -165,6 +168,7 @@ class SummarizerCore:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        flicker: Mapping[str, FlickerScore] | None = None,
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
@@ -173,8 +177,12 @@ class SummarizerCore:
         bag`` keeps its arrival too. Without scores only the arrivals are recorded. ``pairs``:
         per method, the pair ending at this frame (the earlier frame's stamp, its scores), stored
         with the unit as ``dispeval bag --temporal`` stores it; ``motion``: likewise its
-        ego-motion residual.
+        ego-motion residual; ``flicker``: per method, the flicker window closed with it.
         """
+        self._flicker.extend(
+            FrameFlicker(self.sequence, w.start, w.stamp, method, w.frames, w.sums)
+            for method, w in (flicker or {}).items()
+        )
         self._motion.extend(
             FrameMotion(self.sequence, int(stamp), method, previous, sums)
             for method, (previous, sums) in (motion or {}).items()
@@ -206,13 +214,15 @@ class SummarizerCore:
             counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
         unit = f"{self._units:06d}"
         self.store.add_unit(
-            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs, self._motion
-        )
+            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs,
+            self._motion, self._flicker,
+        )  # fmt: skip
         self._units += 1
         self._pending = []
         self._timing = []
         self._pairs = []
         self._motion = []
+        self._flicker = []
         # Live summaries come from the running totals (O(1) per frame); per-frame objectives
         # and timing ones need every frame and so read the database. finish() always does.
         timed = any(

@@ -202,3 +202,44 @@ def test_a_window_of_one_frame_is_one_line(root: Path, capsys: pytest.CaptureFix
     assert "Traceback" not in err[0]
     assert "--flicker must be 0 (off) or a window of at least 2 frames" in err[0]
     assert not (root / "res-one" / "results.sqlite").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 3])
+def test_live_statuses_carry_the_windows_and_the_summarizer_stores_those_of_the_bag(
+    root: Path, static_run: Path, tmp_path: Path, workers: int
+) -> None:
+    """Frames scored side by side reach the flicker stage in the join's order all the same."""
+    from dispeval_ros.cli import streams
+    from dispeval_ros.cli.main import build_parser
+    from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.stream.runner import LiveEvaluator
+    from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore
+    from dispeval_ros.stream.vectors import read_pairs, result_statuses, scores_from_status
+
+    args = build_parser().parse_args(command(root / "static", tmp_path / "unused", "--flicker"))
+    config = streams.core_config(args, "bags")
+    assert config.flicker == 5
+    results = []
+    live = LiveEvaluator(config, results.append, queue_size=100_000, workers=workers)
+    with BagSource(root / "static") as source:
+        for topic, log_ns, msg in source.messages(list(config.topics)):
+            live.push(topic, msg, received=log_ns)
+    live.stop(flush=True)
+    core = SummarizerCore(SummarizerConfig(tmp_path / "live", every_n=3), {"run": "live"})
+    for result in results:
+        scores, pairs, motion, flicker = {}, {}, {}, {}
+        for status in result_statuses(result, config.methods):
+            scores[status.name] = scores_from_status(status.values)
+            read_pairs(status, pairs, motion, flicker)
+        assert {w.method for w in result.flicker} == set(flicker)
+        core.add(result.stamp, scores, None, pairs, motion, flicker)
+    core.finish()
+    with ResultsStore.open(tmp_path / "live") as store:
+        live_windows = store.flicker(store.sequences()[0])
+    with ResultsStore.open(static_run) as store:
+        bag_windows = store.flicker("static")
+    assert live_windows is not None and bag_windows is not None
+    assert live_windows.keys() == bag_windows.keys()
+    for method, (windows, frames, sums) in bag_windows.items():
+        assert live_windows[method][:2] == (windows, frames)
+        assert np.array_equal(live_windows[method][2].sums, sums.sums)  # exact through the text
