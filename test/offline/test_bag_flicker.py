@@ -34,6 +34,7 @@ from dispeval_ros.offline.make_bag import (
     synthetic_frames,
     write_bag,
 )
+from dispeval_ros.offline.static_bag import static_frames
 from dispeval_ros.testbed.methods import default_methods
 
 FRAMES, WIDTH, HEIGHT, SIGMA, BIAS = 10, 96, 48, 0.3, 1.5
@@ -52,19 +53,9 @@ def root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("flicker")
     drive = list(synthetic_frames(FRAMES, WIDTH, HEIGHT, 10.0, seed=4))
     first = drive[0]
-    rng = np.random.default_rng(1)
-
-    def shaken(image: np.ndarray) -> np.ndarray:  # sensor noise, |n| ≤ 3 grey levels
-        noise = rng.integers(-3, 4, image.shape)
-        return np.clip(image.astype(np.int64) + noise, 0, 255).astype(image.dtype)
-
-    still = [
-        dataclasses.replace(
-            f, left=shaken(first.left), right=shaken(first.right), gt=PLANE,
-            odometry=first.odometry,
-        )
-        for f in drive
-    ]  # fmt: skip
+    still = [  # the rig standing still: sensor noise ±3 grey levels per frame, one pose
+        dataclasses.replace(f, gt=PLANE) for f in static_frames(first, FRAMES, 10.0, 3, seed=1)
+    ]
     noise = np.random.default_rng(2)
     for name in METHODS:
         (root / name).mkdir()
@@ -238,8 +229,51 @@ def test_live_statuses_carry_the_windows_and_the_summarizer_stores_those_of_the_
         live_windows = store.flicker(store.sequences()[0])
     with ResultsStore.open(static_run) as store:
         bag_windows = store.flicker("static")
-    assert live_windows is not None and bag_windows is not None
+    assert live_windows is not None
+    assert bag_windows is not None
     assert live_windows.keys() == bag_windows.keys()
     for method, (windows, frames, sums) in bag_windows.items():
         assert live_windows[method][:2] == (windows, frames)
         assert np.array_equal(live_windows[method][2].sums, sums.sums)  # exact through the text
+
+
+def test_make_bag_static_records_one_frame_n_times_with_bounded_sensor_noise(
+    tmp_path: Path,
+) -> None:
+    from dispeval_ros.io.bags import BagSource
+    from dispeval_ros.io.messages import image_from_msg, stamp_ns
+
+    bag = tmp_path / "still"
+    assert main([
+        "make-bag", str(bag), "--static", "4", "--sensor-noise", "2", "--width", "96",
+        "--height", "48", "--no-lidar", "--storage", "rosbag2-sqlite3",
+    ]) == 0  # fmt: skip
+    with BagSource(bag) as source:
+        lefts = [(stamp_ns(m.header), image_from_msg(m, LEFT_IMAGE).array)
+                 for _, _, m in source.messages([LEFT_IMAGE])]  # fmt: skip
+        gts = [image_from_msg(m, GT_TOPIC).array for _, _, m in source.messages([GT_TOPIC])]
+    assert [s - lefts[0][0] for s, _ in lefts] == [0, 100_000_000, 200_000_000, 300_000_000]
+    truth = next(iter(synthetic_frames(1, 96, 48, 10.0, seed=0, odometry=False))).left
+    for _, image in lefts:
+        assert np.abs(image.astype(int) - truth.astype(int)).max() <= 2
+    assert not np.array_equal(lefts[0][1], lefts[1][1])  # fresh noise each frame
+    assert all(np.array_equal(g, gts[0], equal_nan=True) for g in gts)
+    out = tmp_path / "res"
+    assert main([
+        "bag", str(bag), "--gt", GT_TOPIC, "--method", f"bm_fast={disparity_topic('bm_fast')}",
+        "--camera-info", LEFT_INFO, RIGHT_INFO, "--flicker", "4", "--out", str(out), "--quiet",
+    ]) == 0  # fmt: skip
+    with ResultsStore.open(out) as store:
+        flicker = store.flicker(store.sequences()[0])
+    assert flicker is not None
+    assert flicker["bm_fast"][:2] == (1, 4)
+    assert flicker["bm_fast"][2].criteria == ("all",)  # no images given: every pixel
+
+
+def test_sensor_noise_without_static_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["make-bag", str(tmp_path / "x"), "--sensor-noise", "3"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["dispeval make-bag: error: --sensor-noise G goes with --static N"]
+    assert not (tmp_path / "x").exists()
