@@ -49,6 +49,7 @@ from dispeval_ros.stream.vectors import (
     read_pairs,
     read_problem,
     scores_from_status,
+    window_only,
 )
 from dispeval_ros.summary import RunSummary
 
@@ -126,7 +127,8 @@ class DdsSummarizer:
                 if problem is not None:
                     problems.append(problem)
                 else:
-                    scores[record.name] = scores_from_status(record.values)
+                    if not window_only(record):
+                        scores[record.name] = scores_from_status(record.values)
                     read_pairs(record, pairs, motion, flicker)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
@@ -171,8 +173,8 @@ class DdsSummarizer:
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)
-            elif arrivals:  # every estimate failed: their arrivals only
-                self.core.add(stamp, scores, arrivals)
+            elif arrivals or flicker:  # every estimate failed, or a window closed alone
+                self.core.add(stamp, scores, arrivals, None, None, flicker)
             self._lock.notify_all()
         if summary is not None:
             self.publish_groups(summary)

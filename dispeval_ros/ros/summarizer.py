@@ -49,6 +49,7 @@ from dispeval_ros.stream.vectors import (
     read_pairs,
     read_problem,
     scores_from_status,
+    window_only,
 )
 from dispeval_ros.summary import RunSummary
 
@@ -135,7 +136,8 @@ class SummarizerNode(Node):
                     if problem is not None:
                         problems.append((stamp, *problem))
                     else:
-                        frame[record.name] = scores_from_status(record.values)
+                        if not window_only(record):
+                            frame[record.name] = scores_from_status(record.values)
                         read_pairs(record, pairs, motion, flicker)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
@@ -150,7 +152,7 @@ class SummarizerNode(Node):
             for delivery in deliveries:
                 self._book.ledger.add(delivery, frame)
             self._book.problems.extend(problems)
-            if not frame and not arrivals:
+            if not frame and not arrivals and not flicker:
                 return
             try:
                 summary = self._core.add(stamp, frame, arrivals, pairs, motion, flicker)

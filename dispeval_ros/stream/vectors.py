@@ -378,7 +378,17 @@ def result_statuses(
         if s.name in windows
         else s
         for s in statuses
+    ] + [  # a window closed by its method's missing frame, or by the end of the stream
+        StatusRecord(m, topics[m], OK, "flicker window", tuple(flicker_values(w)))
+        for m, w in windows.items()
+        if m not in result.scores
     ]
+
+
+def window_only(record: StatusRecord) -> bool:
+    """Whether a status carries a flicker window and no scores (see :func:`result_statuses`)."""
+    keys = [key for key, _ in record.values]
+    return FLICKER_META[0] in keys and not any(k.endswith("/" + SUMS_KEY) for k in keys)
 
 
 def _timing_values(
