@@ -473,9 +473,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     windows = core.finish_windows()  # the unit's last windows, partial ones too
     if windows is not None:
         result.flicker.extend(flicker_records(unit.sequence, windows.windows))
-        result.problems.extend(
-            Problem(unit.sequence, None, m, text) for m, text in windows.problems
-        )
+        result.problems.extend(Problem(unit.sequence, None, m, t) for m, t in windows.problems)
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
     result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")

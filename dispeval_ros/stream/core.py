@@ -128,8 +128,7 @@ class EvaluationCore:
                 self.pairs.ready = self.motion.ready
         if self.flicker is not None and self.motion is not None:  # the static claim checked
             self.flicker.motion = self.motion.camera_motion
-            if wait_for_motion:
-                self.flicker.ready = self.motion.ready
+            self.flicker.ready = self.motion.ready if wait_for_motion else None
         self._negative_t: set[str] = set()
         """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
@@ -220,8 +219,8 @@ class EvaluationCore:
                     self._count_failed(method)
                 return result
             camera = calibration if isinstance(calibration, Camera) else None
-            self._score_gt_free_only(frame_set, estimates, pair, camera, result)
-            return self._with_pair_input(result, None, camera, pair, infos)
+            given = self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            return self._with_pair_input(result, None, camera or given, pair, infos)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -320,41 +319,24 @@ class EvaluationCore:
         return self.pairs is not None or self.flicker is not None
 
     def window(self, result: FrameResult) -> FrameResult:
-        """The flicker windows a scored frame closes: call it on every frame, in the join's order.
-
-        A bag's unit calls it on the frames it keeps only: windows never span units.
-        """
-        if self.flicker is None:
-            return result
-        outcome = self.flicker.add(result.flicker_input or FlickerInput(result.stamp, {}))
-        result.flicker_input = None
-        result.flicker.extend(outcome.windows)
-        result.problems.extend(outcome.problems)
-        return result
+        """The flicker windows a scored frame closes (every frame, in the join's order)."""
+        return result if self.flicker is None else self.flicker.take(result)
 
     def finish_windows(self) -> FlickerOutcome | None:
         """End of stream: the open flicker windows scored (None: no flicker)."""
         return None if self.flicker is None else self.flicker.finish()
 
     def _prepare(
-        self,
-        method: str,
-        disparity: np.ndarray,
-        terms: Mapping[str, Any],
-        image: np.ndarray | None,
-        part: FrameResult,
-    ) -> None:
-        """One estimate made ready for its pairs and flicker windows (stages that are on).
-
-        The ego-motion residual's frame serves flicker too (the same preparation).
-        """
+        self, method: str, disparity: np.ndarray, terms: Mapping[str, Any],
+        image: np.ndarray | None, part: FrameResult,
+    ) -> None:  # fmt: skip
+        """One estimate made ready for the pair and flicker stages (the same ego-motion frame)."""
         if self.pairs is not None:
             part.prepared[method] = self.pairs.prepare(disparity, **terms, image=image)
         if self.flicker is not None:
-            motion = part.prepared[method].motion if method in part.prepared else None
-            part.flicker_frames[method] = motion or self.flicker.prepare(
-                disparity, **terms, image=image
-            )
+            made = part.prepared[method].motion if method in part.prepared else None
+            made = made or self.flicker.prepare(disparity, **terms, image=image)
+            part.flicker_frames[method] = made
 
     def _score_method(
         self,
@@ -538,12 +520,14 @@ class EvaluationCore:
         pair: ImagePair,
         camera: Camera | None,
         result: FrameResult,
-    ) -> FrameResult:
-        """No ground truth: each method's GT-free scores alone (a bad estimate: failed)."""
+    ) -> Camera | None:
+        """Each method's GT-free scores alone (a bad one: failed); its first DisparityImage's camera."""
+        given = None
         for method, (stamp, msg) in estimates.items():
             topic = self._topic(method)
             try:
                 frame = disparity_from_msg(msg, topic)
+                given = given or frame.camera
                 result.scores[method] = self._score_images(
                     method, frame, frame_set, pair, camera, result
                 )
@@ -552,7 +536,7 @@ class EvaluationCore:
             except DispevalError as error:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
-        return result
+        return given
 
     def extrinsic(self, camera_frame: str, cloud_frame: str) -> np.ndarray:
         """The cloud → camera transform: explicit, the lookup hook, or /tf_static's chain."""

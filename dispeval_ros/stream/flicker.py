@@ -29,6 +29,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,6 +44,9 @@ from dispeval_ros.core.egomotion import (
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.stream.pairs import DEFAULT_PAIR_GAP_NS, MOTION_WAIT, Motion, motion_disparity
+
+if TYPE_CHECKING:
+    from dispeval_ros.stream.results import FrameResult
 
 DEFAULT_FLICKER_WINDOW = 5
 """Frames per flicker window when ``--flicker`` is given without a number."""
@@ -204,6 +208,17 @@ class FlickerStage:
                 self._close(method, None, out)
         self._resolve(out)
         return out
+
+    def take(self, result: FrameResult) -> FrameResult:
+        """:meth:`add` of a scored frame's input; its windows and problems go on ``result``.
+
+        A bag's unit takes the frames it keeps only: windows never span units.
+        """
+        outcome = self.add(result.flicker_input or FlickerInput(result.stamp, {}))
+        result.flicker_input = None
+        result.flicker.extend(outcome.windows)
+        result.problems.extend(outcome.problems)
+        return result
 
     def finish(self) -> FlickerOutcome:
         """End of stream: every open window closed and every waiting one scored."""

@@ -288,3 +288,26 @@ def test_sensor_noise_without_static_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["dispeval make-bag: error: --sensor-noise G goes with --static N"]
     assert not (tmp_path / "x").exists()
+
+
+def test_without_ground_truth_or_camera_info_the_windows_are_the_same(
+    root: Path, static_run: Path
+) -> None:
+    """Flicker needs no GT; the depths' camera then comes from the DisparityImages' f and t."""
+    out = root / "res-gt-free"
+    line = command(root / "static", out, "--flicker")
+    for option, count in (("--gt", 2), ("--camera-info", 3), ("--criteria", 2)):
+        at = line.index(option)
+        del line[at : at + count]
+    assert main(line) == 0
+    with ResultsStore.open(out) as store, ResultsStore.open(static_run) as plain:
+        mine, theirs = store.flicker("static"), plain.flicker("static")
+    assert mine is not None
+    assert theirs is not None
+    for method, (windows, frames, sums) in theirs.items():
+        assert mine[method][:2] == (windows, frames)
+        depth = [sums.columns.index(c) for c in ("sum_abs_z", "sum_sq_z")]
+        pixels = [i for i in range(len(sums.columns)) if i not in depth]
+        np.testing.assert_array_equal(mine[method][2].sums[:, pixels], sums.sums[:, pixels])
+        # the DisparityImage's f and t are float32, the CameraInfo's float64
+        np.testing.assert_allclose(mine[method][2].sums[:, depth], sums.sums[:, depth], rtol=1e-6)
