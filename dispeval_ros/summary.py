@@ -12,7 +12,7 @@ latency table shows.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -65,24 +65,7 @@ class SequenceSummary:
 
     def flicker_dict(self) -> dict[str, Any] | None:
         """The JSON ``flicker`` entry: what it is, per method its windows and ``gtfree:`` values."""
-        if self.flicker is None:
-            return None
-        return {
-            "label": FLICKER_LABEL,
-            "methods": {
-                method: {
-                    "windows": windows,
-                    "frames": frames,
-                    "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
-                    "columns": list(sums.columns),
-                    "sums": {
-                        GT_FREE_PREFIX + c: row.tolist()
-                        for c, row in zip(sums.criteria, sums.sums, strict=True)
-                    },
-                }
-                for method, (windows, frames, sums) in self.flicker.items()
-            },
-        }
+        return None if self.flicker is None else flicker_entry(self.flicker)
 
     def egomotion_dict(self) -> dict[str, Any] | None:
         """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
@@ -241,6 +224,30 @@ def sequence_motion(store: object, sequence: str) -> dict[str, tuple[int, Tempor
     """Per method, its ego-motion pairs in ``sequence`` (None: not recorded, or live totals)."""
     reader = getattr(store, "motion_pairs", None)
     return reader(sequence) if reader else None
+
+
+def flicker_entry(flicker: Mapping[str, tuple[int, int, TemporalSums]]) -> dict[str, Any]:
+    """The JSON ``flicker`` entry of ``summary.json`` and ``eval --flicker``.
+
+    The label, and per method (its windows, their frames, pooled sums) the values and sums by
+    ``gtfree:`` criterion.
+    """
+    return {
+        "label": FLICKER_LABEL,
+        "methods": {
+            method: {
+                "windows": windows,
+                "frames": frames,
+                "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
+                "columns": list(sums.columns),
+                "sums": {
+                    GT_FREE_PREFIX + c: row.tolist()
+                    for c, row in zip(sums.criteria, sums.sums, strict=True)
+                },
+            }
+            for method, (windows, frames, sums) in flicker.items()
+        },
+    }
 
 
 def sequence_flicker(
