@@ -12,7 +12,7 @@ latency table shows.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -38,6 +38,8 @@ from dispeval_ros.core.timing import Timing, benchmark_keys, timing_of
 from dispeval_ros.errors import ConfigurationError
 
 GRANULARITIES = ("sequence", "frame")
+FLICKER_LABEL = "temporal noise of a static camera, not accuracy"
+"""What every flicker output says it is (summary.json, tables, /dispeval/scores' help)."""
 
 
 @dataclass
@@ -75,6 +77,13 @@ class SequenceSummary:
         for method, (pairs, _) in self.drift.items():
             entry["methods"][method]["pairs"] = pairs  # type: ignore[index]
         return entry
+
+    flicker: dict[str, tuple[int, int, TemporalSums]] | None = None
+    """Per method: its flicker windows, their frames and their sums pooled (``flicker``)."""
+
+    def flicker_dict(self) -> dict[str, Any] | None:
+        """The JSON ``flicker`` entry: what it is, per method its windows and ``gtfree:`` values."""
+        return None if self.flicker is None else flicker_entry(self.flicker)
 
     def egomotion_dict(self) -> dict[str, Any] | None:
         """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
@@ -114,6 +123,8 @@ class RunSummary:
     """The temporal preset the run scored pairs under (None: no ``--temporal``)."""
     egomotion: bool = False
     """Whether the run scored the ego-motion residual of its pairs."""
+    flicker: bool = False
+    """Whether the run scored flicker windows."""
 
     def benchmark_document(self) -> dict[str, Any]:
         """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
@@ -150,6 +161,7 @@ class RunSummary:
                         if self.egomotion
                         else {}
                     ),
+                    **({"flicker": s.flicker_dict()} if self.flicker else {}),
                 }
                 for s in self.sequences
             ],
@@ -240,6 +252,36 @@ def sequence_drift(store: object, sequence: str) -> dict[str, tuple[int, DriftSu
     """Per method, its LiDAR drift pairs in ``sequence`` (None: not recorded, or live totals)."""
     reader = getattr(store, "drift_pairs", None)
     return reader(sequence) if reader else None
+def flicker_entry(flicker: Mapping[str, tuple[int, int, TemporalSums]]) -> dict[str, Any]:
+    """The JSON ``flicker`` entry of ``summary.json`` and ``eval --flicker``.
+
+    The label, and per method (its windows, their frames, pooled sums) the values and sums by
+    ``gtfree:`` criterion.
+    """
+    return {
+        "label": FLICKER_LABEL,
+        "methods": {
+            method: {
+                "windows": windows,
+                "frames": frames,
+                "criteria": {GT_FREE_PREFIX + c: sums.summary(c) for c in sums.criteria},
+                "columns": list(sums.columns),
+                "sums": {
+                    GT_FREE_PREFIX + c: row.tolist()
+                    for c, row in zip(sums.criteria, sums.sums, strict=True)
+                },
+            }
+            for method, (windows, frames, sums) in flicker.items()
+        },
+    }
+
+
+def sequence_flicker(
+    store: object, sequence: str
+) -> dict[str, tuple[int, int, TemporalSums]] | None:
+    """Per method, its flicker windows in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "flicker", None)
+    return reader(sequence) if callable(reader) else None
 
 
 def sequence_pairs(store: object, sequence: str) -> dict[str, PairScores] | None:
@@ -328,6 +370,7 @@ def summarize(
                 pairs,
                 motion,
                 sequence_drift(store, sequence),
+                sequence_flicker(store, sequence),
             )
         )
         if names:
@@ -342,8 +385,18 @@ def summarize(
     config = getattr(store, "config", None)
     egomotion = bool(config().get("egomotion")) if callable(config) else False
     egomotion = egomotion or any(s.motion for s in summaries)
+    flicker = bool(config().get("flicker")) if callable(config) else False
+    flicker = flicker or any(s.flicker for s in summaries)
     return RunSummary(
-        granularity, list(measures), summaries, all_names, overall, matrix, temporal, egomotion
+        granularity,
+        list(measures),
+        summaries,
+        all_names,
+        overall,
+        matrix,
+        temporal,
+        egomotion,
+        flicker,
     )
 
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dispeval_ros.cli import common, egomotion_eval, protocol_eval, temporal_eval
+from dispeval_ros.cli import common, egomotion_eval, flicker_eval, protocol_eval, temporal_eval
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, ModelResult, Reference, Scores, evaluate_models
@@ -29,6 +29,8 @@ if TYPE_CHECKING:
     from dispeval_ros.io.scenes import Scene
 
 HELP = "score estimated disparity maps against ground truth, by criterion"
+RESULTS = ("temporal", "egomotion", "flicker")
+"""The sequence results beside the frames' scores, as the JSON and --out name them."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -113,6 +115,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     protocol_eval.add_options(parser)
     temporal_eval.add_options(parser)
     egomotion_eval.add_options(parser)
+    flicker_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument(
         "--out",
@@ -199,6 +202,7 @@ def _provenance(
     if args.temporal is not None:
         configuration["temporal"] = args.temporal
     configuration.update(egomotion_eval.configuration(args))
+    configuration.update(flicker_eval.configuration(args))
     return provenance_record(configuration, {"files": files_sha256(inputs)})
 
 
@@ -493,6 +497,7 @@ def run(args: argparse.Namespace) -> int:
     scene_only = [o for o, v in (("--frame", args.frame), ("--gt-source", args.gt_source)) if v]
     temporal_eval.check_options(args)
     egomotion_eval.check_options(args)
+    flicker_eval.check_options(args)
     if args.protocol is not None:
         if args.out is not None:
             raise ConfigurationError(
@@ -566,7 +571,8 @@ def run(args: argparse.Namespace) -> int:
     temporal = temporal_eval.score(pairs, evaluator, references, args.est_scale)
     by_frame = {f.frame: r for f, r in zip(frames, references, strict=True)}
     ego = egomotion_eval.score(motion, args, frames[0].camera, by_frame)
-    done = [(n, r) for n, r in (("temporal", temporal), ("egomotion", ego)) if r is not None]
+    flicker = flicker_eval.score(args, scored)
+    done = [(n, r) for n, r in zip(RESULTS, (temporal, ego, flicker), strict=True) if r is not None]
     result: dict[str, object] = {name: one.to_dict() for name, one in done}
     inputs = [path for s in scored for path in s.frame.inputs]
     wanted = args.json or args.out is not None  # the text alone hashes nothing

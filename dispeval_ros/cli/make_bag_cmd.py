@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 from dispeval_ros.cli.output import plural, print_json, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.offline.static_bag import DEFAULT_SENSOR_NOISE
 
 if TYPE_CHECKING:
     from dispeval_ros.offline.make_bag import Estimates
@@ -66,6 +67,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--compress",
         action="store_true",
         help="zstd-compress MCAP chunks (smaller, slower to read; rosbag2 records uncompressed by default)",
+    )
+    parser.add_argument(
+        "--static",
+        type=int,
+        metavar="N",
+        help="a static camera: the first frame (of the drive or --scene) recorded N times at "
+        "--fps, each with its own sensor noise, the methods run on every frame (for "
+        "dispeval bag --flicker)",
+    )
+    parser.add_argument(
+        "--sensor-noise",
+        type=int,
+        default=DEFAULT_SENSOR_NOISE,
+        metavar="G",
+        help="with --static: uniform integer noise of ±G grey levels per pixel, image and frame "
+        f"(default {DEFAULT_SENSOR_NOISE})",
     )
     parser.add_argument("--json", action="store_true", help="print what was written as JSON")
     parser.set_defaults(run=run)
@@ -129,6 +146,13 @@ def run(args: argparse.Namespace) -> int:
     first = next(frames, None)
     if first is None:
         raise InputError(f"{args.scene}: no frame to write")
+    if args.static is not None:
+        from dispeval_ros.offline.static_bag import static_frames
+
+        frames = static_frames(first, args.static, args.fps, args.sensor_noise, args.seed)
+        first, total = next(frames), args.static
+    elif args.sensor_noise != DEFAULT_SENSOR_NOISE:
+        raise ConfigurationError("--sensor-noise G goes with --static N")
     progress = Progress("dispeval make-bag: writing", enabled=not args.json, unit="frames")
     try:
         summary = write_bag(

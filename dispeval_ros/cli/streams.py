@@ -133,7 +133,7 @@ def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False
         type=float,
         default=gap_ms,
         metavar="MS",
-        help=f"with --temporal or --egomotion: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
+        help=f"with --temporal, --egomotion or --flicker: {PAIR_GAP_RULE} (ms, default {gap_ms:g})",
     )
     if egomotion:
         group.add_argument(
@@ -144,6 +144,23 @@ def add_temporal_options(group: argparse._ArgumentGroup, egomotion: bool = False
             "the camera's motion from /tf and /tf_static; needs --camera-info; docs/method.md); "
             + DRIFT_RULE,
         )
+        add_flicker_option(group)
+
+
+def add_flicker_option(group: argparse._ArgumentGroup) -> None:
+    """``--flicker [N]``: off by default, N frames per window when given alone (bags, live)."""
+    from dispeval_ros.stream.flicker import DEFAULT_FLICKER_WINDOW, FLICKER_RULE
+
+    group.add_argument(
+        "--flicker",
+        type=int,
+        nargs="?",
+        const=DEFAULT_FLICKER_WINDOW,
+        default=core_default("flicker"),
+        metavar="N",
+        help=f"{FLICKER_RULE} (N default {DEFAULT_FLICKER_WINDOW}; assumes a static camera, "
+        "checked against /tf with --egomotion; docs/method.md)",
+    )
 
 
 _NAMES = {
@@ -157,6 +174,7 @@ _NAMES = {
     "temporal": "--temporal",
     "pair_gap_ns": "--pair-gap",
     "egomotion": "--egomotion",
+    "flicker": "--flicker",
 }
 """How the options name :class:`CoreConfig`'s fields in its errors (``gt_topic``: see below)."""
 
@@ -236,6 +254,7 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         lateness_ns=round(non_negative_ms(args.lateness, "--lateness") * _NS_PER_MS),
         temporal=args.temporal,
         egomotion=bool(getattr(args, "egomotion", False)),  # bag and live
+        flicker=getattr(args, "flicker", 0) or 0,
         pair_gap_ns=round(non_negative_ms(args.pair_gap, "--pair-gap") * _NS_PER_MS),
         names=names,
     )

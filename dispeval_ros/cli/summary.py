@@ -15,6 +15,7 @@ from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums
 from dispeval_ros.core.measures import DEPTH_MEASURES, GT_FREE_PREFIX, applies, measure_unit
 from dispeval_ros.core.objectives import has_points
 from dispeval_ros.core.timing import TIMING_MEASURES, WINDOW_NS
+from dispeval_ros.summary import FLICKER_LABEL
 
 ScoreTable = Mapping[str, Mapping[str, float]]
 GT_FREE_LABEL = "  (ground-truth-free: from the left and right images, no GT)"
@@ -339,6 +340,38 @@ def egomotion_text(motion: Mapping[str, Any] | None) -> str:
     return wrapped(title) + "\n" + fitted_tables(header, rows, keep=2)
 
 
+FLICKER_MASKED = ("n_missing", "n_edge", "n_moving")
+"""The masks flicker applies (an estimate missing in a frame, a depth edge, a changing image)."""
+
+
+def flicker_text(flicker: Mapping[str, Any] | None) -> str:
+    """A sequence's flicker (``flicker``): method → (windows, frames, pooled sums), or why none."""
+    if flicker is None:
+        return wrapped("\nflicker: not recorded (results older than it)")
+    if not flicker:
+        return wrapped("\nflicker: no window (no method has two consecutive frames)")
+    first = next(iter(flicker.values()))[2]
+    bad = [f"bad_{t:g}" for t in first.thresholds]
+    header = [
+        "criterion", "method", "windows", "frames", "n_residual", "mean [px]", "rms [px]",
+        *(f"{b} [%]" for b in bad), "mean_z [m]", *FLICKER_MASKED,
+    ]  # fmt: skip
+    rows: list[list[object]] = []
+    for criterion in first.criteria:
+        for method, (windows, frames, sums) in flicker.items():
+            one = sums.summary(criterion)
+            rows.append([
+                GT_FREE_PREFIX + criterion, method, windows, frames, int(one["n_residual"]),
+                one["mean"], one["rms"], *(one[b] for b in bad), one["mean_abs_z"],
+                *(int(one[m]) for m in FLICKER_MASKED),
+            ])  # fmt: skip
+    title = (
+        "\nflicker: each method's per-pixel spread (std, ddof 1) over its windows of "
+        f"consecutive frames ({FLICKER_LABEL})"
+    )
+    return wrapped(title) + "\n" + fitted_tables(header, rows, keep=2)
+
+
 def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
     """Per-sequence counts, scores over the common frames and models; then all sequences."""
     parts = []
@@ -369,6 +402,8 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
                 pooled = {m: sums for m, (_, sums) in drift.items()}
                 pairs = {m: n for m, (n, _) in drift.items()}
                 parts.append("\n" + drift_text(options, pooled, pairs))
+        if getattr(summary, "flicker", False):
+            parts.append(flicker_text(sequence.flicker))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

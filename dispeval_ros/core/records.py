@@ -16,7 +16,10 @@ if TYPE_CHECKING:
     from dispeval_ros.core.measures import Scores
     from dispeval_ros.core.temporal import PairScores
 
-__all__ = ["FrameMotion", "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+__all__ = [
+    "FrameFlicker",
+    "FrameMotion",
+    "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,18 @@ class FrameMotion:
     sums: TemporalSums
     drift: DriftSums | None = None
     """The LiDAR drift of the same pair (stored in its own table; None: not scored)."""
+
+
+@dataclass(frozen=True)
+class FrameFlicker:
+    """One method's flicker sums over one window of ``frames`` frames, ``start`` to ``stamp``."""
+
+    sequence: str
+    start: int
+    stamp: int
+    method: str
+    frames: int
+    sums: TemporalSums
 
 
 @dataclass(frozen=True)

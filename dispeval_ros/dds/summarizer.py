@@ -42,6 +42,7 @@ from dispeval_ros.dds.wire import (
 )
 from dispeval_ros.errors import InputError
 from dispeval_ros.stream.delivery import CountsBook, Delivery, read_delivery
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.summarizer import SummarizerConfig, SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
@@ -49,6 +50,7 @@ from dispeval_ros.stream.vectors import (
     read_pairs,
     read_problem,
     scores_from_status,
+    window_only,
 )
 from dispeval_ros.summary import RunSummary
 
@@ -114,6 +116,7 @@ class DdsSummarizer:
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
         drift: dict[str, DriftSums] = {}
+        flicker: dict[str, FlickerScore] = {}
         problems: list[tuple[str | None, str]] = []
         deliveries: list[Delivery] = []
         for record in records:
@@ -126,12 +129,15 @@ class DdsSummarizer:
                 if problem is not None:
                     problems.append(problem)
                 else:
-                    scores[record.name] = scores_from_status(record.values)
-                    read_pairs(record, pairs, motion, drift)
+                    if not window_only(record):
+                        scores[record.name] = scores_from_status(record.values)
+                    read_pairs(record, pairs, motion, drift=drift, flicker=flicker)
                 arrivals.update(arrivals_of(record))  # failed estimates' too
             except InputError:
                 continue  # not a dispeval status, or a malformed one
-        self.add(stamp, scores, problems, deliveries, arrivals, pairs, motion, drift)
+        self.add(
+            stamp, scores, problems, deliveries, arrivals, pairs, motion, drift=drift, flicker=flicker
+        )
 
     def add(
         self,
@@ -142,13 +148,16 @@ class DdsSummarizer:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        *,
         drift: Mapping[str, DriftSums] | None = None,
+        flicker: Mapping[str, FlickerScore] | None = None,
     ) -> None:
         """One frame (as it came off the wire): store, summarise every unit, publish groups.
 
         ``arrivals``: per method, (estimate stamp, arrival) from its status (the latency);
         ``pairs``, ``motion``: per method, the pair ending at the frame (``temporal``) and its
-        ego-motion residual (``egomotion``); ``drift``: that pair's LiDAR drift.
+        ego-motion residual (``egomotion``); ``drift``: that pair's LiDAR drift; ``flicker``: per
+        method, the flicker window closed with the frame.
         """
         summary = None
         with self._lock:
@@ -167,12 +176,14 @@ class DdsSummarizer:
                 self._stamps.add(stamp)
                 self._newest = stamp if self._newest is None else max(self._newest, stamp)
                 started = time.monotonic()
-                summary = self.core.add(stamp, scores, arrivals, pairs, motion, drift)
+                summary = self.core.add(
+                    stamp, scores, arrivals, pairs, motion, drift=drift, flicker=flicker
+                )
                 self.frames += 1
                 if summary is not None:
                     self._adapt_period(time.monotonic() - started)
-            elif arrivals:  # every estimate failed: their arrivals only
-                self.core.add(stamp, scores, arrivals)
+            elif arrivals or flicker:  # every estimate failed, or a window closed alone
+                self.core.add(stamp, scores, arrivals, flicker=flicker)
             self._lock.notify_all()
         if summary is not None:
             self.publish_groups(summary)

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from dispeval_ros.core.records import (
+    FrameFlicker,
     FrameMotion,
     FramePair,
     FrameScores,
@@ -48,6 +49,7 @@ from dispeval_ros.offline.threads import (  # noqa: F401 (executors and tests im
 )
 from dispeval_ros.stream.config import TF_STATIC_TOPIC, TF_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.join import FrameSet, JoinEvent
 from dispeval_ros.stream.pairs import MotionPair
 
@@ -94,6 +96,8 @@ class UnitResult:
     """With ``temporal``: the pairs whose later frame this unit kept."""
     motion: list[FrameMotion] = field(default_factory=list)
     """With ``egomotion``: the ego-motion residuals of those pairs."""
+    flicker: list[FrameFlicker] = field(default_factory=list)
+    """With ``flicker``: the windows of the frames this unit kept (never spanning units)."""
     messages: int = 0
     kept: dict[int, int] = field(default_factory=dict)
     """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
@@ -129,6 +133,7 @@ class UnitRows:
             result.timing,
             result.pairs,
             result.motion,
+            result.flicker,
         )
         return cls(
             unit,
@@ -389,6 +394,8 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
         result.motion.extend(motion_records(unit.sequence, frame.motion_pairs, result.kept))
         if not keep:
             return
+        core.window(frame)  # windows of the kept frames only: they never span units
+        result.flicker.extend(flicker_records(unit.sequence, frame.flicker))
         if frame.pair_previous is not None:
             previous = frame.pair_previous
             result.pairs.extend(
@@ -463,6 +470,10 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     if tail is not None:
         result.motion.extend(motion_records(unit.sequence, tail.motion, result.kept))
         result.problems.extend(Problem(unit.sequence, None, m, text) for m, text in tail.problems)
+    windows = core.finish_windows()  # the unit's last windows, partial ones too
+    if windows is not None:
+        result.flicker.extend(flicker_records(unit.sequence, windows.windows))
+        result.problems.extend(Problem(unit.sequence, None, m, t) for m, t in windows.problems)
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
     result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")
@@ -499,6 +510,11 @@ def motion_records(
     """The ego-motion pairs (and their drift) whose later frame a unit keeps, to store."""
     return [FrameMotion(sequence, p.stamp, p.method, p.previous, p.sums, p.drift) for p in pairs
             if p.stamp in kept]  # fmt: skip
+
+
+def flicker_records(sequence: str, windows: Iterable[FlickerScore]) -> list[FrameFlicker]:
+    """A unit's flicker windows as records to store."""
+    return [FrameFlicker(sequence, w.start, w.stamp, w.method, w.frames, w.sums) for w in windows]
 
 
 def unmatched_hints(

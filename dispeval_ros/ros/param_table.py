@@ -14,6 +14,7 @@ from dispeval_ros.core import registry
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.core.temporal import PRESETS
 from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
+from dispeval_ros.stream.flicker import FLICKER_RULE
 from dispeval_ros.stream.join import LATENESS_RULE
 from dispeval_ros.stream.pairs import DRIFT_RULE, PAIR_GAP_RULE
 from dispeval_ros.stream.summarizer import SummarizerConfig
@@ -235,7 +236,7 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "pair_gap",
         DOUBLE,
         core_default("pair_gap_ns") / NS_PER_SECOND,
-        f"With temporal or egomotion: {PAIR_GAP_RULE} (s)",
+        f"With temporal, egomotion or flicker: {PAIR_GAP_RULE} (s)",
         "(0, 600] s",
         low=0.0,
         high=600.0,
@@ -248,6 +249,16 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         "temporal noise on gtfree:* criteria, not bias): the estimate moved by the camera's "
         "motion, from /tf and /tf_static (tf2_msgs) or odometry_topic. Needs the CameraInfo "
         f"topics. {DRIFT_RULE[0].upper()}{DRIFT_RULE[1:]}",
+    ),
+    Param(
+        "flicker",
+        INTEGER,
+        core_default("flicker"),
+        f"Frames per window of the {FLICKER_RULE}; 0: off. Assumes a static camera (checked "
+        "against /tf with egomotion)",
+        "0 or [2, 1000]",
+        low=0,
+        high=1000,
     ),
     Param(
         "odometry_topic",

@@ -84,6 +84,7 @@ ROS_NAMES = FieldNames(
         "temporal": "temporal",
         "pair_gap_ns": "pair_gap",
         "egomotion": "egomotion",
+        "flicker": "flicker",
     },
     one="parameter ",
     many="parameters ",
@@ -189,6 +190,7 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
             values.get("pair_gap", core_default("pair_gap_ns") / 1e9), "pair_gap"
         ),
         egomotion=bool(values.get("egomotion", core_default("egomotion"))),
+        flicker=int(values.get("flicker", core_default("flicker"))),
         names=ROS_NAMES,
     )
 

@@ -42,6 +42,7 @@ from dispeval_ros.ros.lifecycle import run_node
 from dispeval_ros.ros.param_table import SUMMARIZER_PARAMETERS
 from dispeval_ros.ros.params import declare_parameters, ros_advice, summarizer_options
 from dispeval_ros.stream.delivery import CountsBook, read_delivery
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.summarizer import SummarizerCore, group_statuses
 from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
 from dispeval_ros.stream.vectors import (
@@ -49,6 +50,7 @@ from dispeval_ros.stream.vectors import (
     read_pairs,
     read_problem,
     scores_from_status,
+    window_only,
 )
 from dispeval_ros.summary import RunSummary
 
@@ -122,6 +124,7 @@ class SummarizerNode(Node):
         pairs: dict[str, tuple[int, PairScores]] = {}
         motion: dict[str, tuple[int, TemporalSums]] = {}
         drift: dict[str, DriftSums] = {}
+        flicker: dict[str, FlickerScore] = {}
         deliveries = []
         problems: list[tuple[int | None, str | None, str]] = []
         for status in msg.status:
@@ -135,8 +138,9 @@ class SummarizerNode(Node):
                     if problem is not None:
                         problems.append((stamp, *problem))
                     else:
-                        frame[record.name] = scores_from_status(record.values)
-                        read_pairs(record, pairs, motion, drift)
+                        if not window_only(record):
+                            frame[record.name] = scores_from_status(record.values)
+                        read_pairs(record, pairs, motion, drift=drift, flicker=flicker)
                     arrivals.update(arrivals_of(record))  # failed estimates' too
             except DispevalError as error:
                 self.get_logger().warning(
@@ -150,10 +154,12 @@ class SummarizerNode(Node):
             for delivery in deliveries:
                 self._book.ledger.add(delivery, frame)
             self._book.problems.extend(problems)
-            if not frame and not arrivals:
+            if not frame and not arrivals and not flicker:
                 return
             try:
-                summary = self._core.add(stamp, frame, arrivals, pairs, motion, drift)
+                summary = self._core.add(
+                    stamp, frame, arrivals, pairs, motion, drift=drift, flicker=flicker
+                )
             except DispevalError as error:
                 self._book.problems.append((stamp, None, f"cannot store the frame: {error}"))
                 self.get_logger().error(

@@ -27,6 +27,7 @@ from dispeval_ros.core.projection import CloudFilter
 from dispeval_ros.core.temporal import PRESETS
 from dispeval_ros.core.transforms import rigid_matrix
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.stream.flicker import FlickerStage
 from dispeval_ros.stream.pairs import DEFAULT_PAIR_GAP_NS, PairStage
 
 DISPARITY_TYPE = "stereo_msgs/msg/DisparityImage"
@@ -98,6 +99,7 @@ _NEUTRAL = {
     "temporal": "the temporal preset",
     "pair_gap_ns": "the pair gap",
     "egomotion": "the ego-motion residual",
+    "flicker": "the flicker window",
 }
 NEUTRAL_NAMES = FieldNames()
 """The wording for Python callers: fields named in plain words."""
@@ -140,6 +142,9 @@ class CoreConfig:
     egomotion: bool = False
     """Also score each method's ego-motion residual over the same pairs (ground-truth-free
     temporal noise; the camera's motion from the stream's /tf)."""
+    flicker: int = 0
+    """Frames per flicker window of a static camera (:mod:`~dispeval_ros.stream.flicker`;
+    ground-truth-free temporal noise); 0: not scored."""
     names: InitVar[FieldNames | None] = None
     """How the front end names the fields in the errors (not stored; neutral words if None)."""
 
@@ -207,10 +212,16 @@ class CoreConfig:
                 "frame)",
                 "egomotion",
             )
-        if self.egomotion and not self.pair_gap_ns > 0:
+        if (self.egomotion or self.flicker) and not self.pair_gap_ns > 0:
             raise names.error(
                 f"{names.of('pair_gap_ns')} must be > 0, got {self.pair_gap_ns / 1e6:g} ms",
                 "pair_gap_ns",
+            )
+        if not (isinstance(self.flicker, int) and (self.flicker == 0 or self.flicker >= 2)):
+            raise names.error(
+                f"{names.of('flicker')} must be 0 (off) or a window of at least 2 frames (the "
+                f"spread of one frame is undefined), got {self.flicker!r}",
+                "flicker",
             )
         if self.temporal is None:
             return
@@ -312,6 +323,7 @@ class CoreConfig:
                 "temporal",
                 "pair_gap_ns",
                 "egomotion",
+                "flicker",
             )
             if record.get(key) is not None
         }
@@ -427,10 +439,11 @@ class CoreConfig:
             # only when pairs are scored: records of runs without them are unchanged
             **(
                 {"temporal": self.temporal, "pair_gap_ns": self.pair_gap_ns}
-                if self.temporal is not None or self.egomotion
+                if self.temporal is not None or self.egomotion or self.flicker
                 else {}
             ),
             **({"egomotion": True} if self.egomotion else {}),
+            **({"flicker": self.flicker} if self.flicker else {}),
         }
 
     def ground_truth_free(self) -> GroundTruthFree | None:
@@ -446,6 +459,12 @@ class CoreConfig:
         motion = EgoMotionOptions() if self.egomotion else None
         drift = DriftOptions.of_run(self.missing, self.delta) if self.pointcloud else None
         return PairStage(self.evaluator(), self.temporal, self.pair_gap_ns, motion, drift)
+
+    def flicker_stage(self) -> FlickerStage | None:
+        """The stage scoring flicker windows (None without ``flicker``)."""
+        if not self.flicker:
+            return None
+        return FlickerStage(self.flicker, self.pair_gap_ns, EgoMotionOptions())
 
     def evaluator(self) -> Evaluator:
         """The core evaluator these options describe (measures default to the summable ones).

@@ -45,6 +45,7 @@ from dispeval_ros.stream.config import (
     TF_TYPE,
     CoreConfig,
 )
+from dispeval_ros.stream.flicker import FlickerInput, FlickerOutcome
 from dispeval_ros.stream.join import REPEAT_MEMORY_NS, FrameSet, JoinCounts, StampJoiner
 from dispeval_ros.stream.motion import MotionSource
 from dispeval_ros.stream.pairs import PairInput, PairOutcome, camera_view
@@ -96,6 +97,8 @@ class EvaluationCore:
         self.gt_free = config.ground_truth_free()
         self.pairs = config.pair_stage()
         """The pair stage (``temporal``): fed in the join's order by :meth:`pair`."""
+        self.flicker = config.flicker_stage()
+        """The flicker windows (``flicker``): fed in the join's order by :meth:`window`."""
         self.motion: MotionSource | None = None
         """With ``egomotion``: the stream's /tf history the residual's motion comes from."""
         auxiliary = config.auxiliary()
@@ -123,6 +126,9 @@ class EvaluationCore:
             self.pairs.motion = self.motion.camera_motion
             if wait_for_motion:  # a bag: /tf logged after a frame is read before its pair
                 self.pairs.ready = self.motion.ready
+        if self.flicker is not None and self.motion is not None:  # the static claim checked
+            self.flicker.motion = self.motion.camera_motion
+            self.flicker.ready = self.motion.ready if wait_for_motion else None
         self._negative_t: set[str] = set()
         """Topics already warned of a negative DisparityImage ``t`` (said once per topic)."""
 
@@ -213,8 +219,8 @@ class EvaluationCore:
                     self._count_failed(method)
                 return result
             camera = calibration if isinstance(calibration, Camera) else None
-            self._score_gt_free_only(frame_set, estimates, pair, camera, result)
-            return self._with_pair_input(result, None, camera, pair, infos)
+            given = self._score_gt_free_only(frame_set, estimates, pair, camera, result)
+            return self._with_pair_input(result, None, camera or given, pair, infos)
         frames: dict[str, DisparityFrame | DispevalError] = {}
         for method, (_, msg) in estimates.items():  # each decoded once
             try:
@@ -265,6 +271,7 @@ class EvaluationCore:
             result.errors.update(part.errors)
             result.partition = part.partition or result.partition
             result.prepared.update(part.prepared)
+            result.flicker_frames.update(part.flicker_frames)
         return self._with_pair_input(result, reference, reference.camera, pair, infos)
 
     def _with_pair_input(
@@ -275,13 +282,17 @@ class EvaluationCore:
         pair: ImagePair | None,
         infos: Mapping[str, Any],
     ) -> FrameResult:
-        """``result`` with what the pair stage keeps of its frame (nothing without a stage)."""
-        if self.pairs is None:
-            return result
+        """``result`` with what the pair and flicker stages keep of its frame (if any)."""
         view: tuple[Any, str] = (None, "")
-        if self.pairs.egomotion is not None:  # the principal point and frame of the camera
+        if self.config.egomotion:  # the principal point and frame of the camera
             view = camera_view(camera, infos, self.config.left_info_topic)
         partition = None if pair is None else pair.partition
+        if self.flicker is not None:
+            frames = result.flicker_frames
+            result.flicker_input = FlickerInput(result.stamp, frames, partition, camera, view[1])
+            result.flicker_frames = {}
+        if self.pairs is None:
+            return result
         result.pair_input = PairInput(result.stamp, reference, result.prepared, partition, *view)
         result.prepared = {}
         return result
@@ -301,6 +312,31 @@ class EvaluationCore:
     def finish_pairs(self) -> PairOutcome | None:
         """End of stream: the pairs still waiting for the motion source (None: no stage)."""
         return None if self.pairs is None else self.pairs.finish()
+
+    @property
+    def ordered(self) -> bool:
+        """Whether scored frames must be handed to :meth:`pair` and :meth:`window` in order."""
+        return self.pairs is not None or self.flicker is not None
+
+    def window(self, result: FrameResult) -> FrameResult:
+        """The flicker windows a scored frame closes (every frame, in the join's order)."""
+        return result if self.flicker is None else self.flicker.take(result)
+
+    def finish_windows(self) -> FlickerOutcome | None:
+        """End of stream: the open flicker windows scored (None: no flicker)."""
+        return None if self.flicker is None else self.flicker.finish()
+
+    def _prepare(
+        self, method: str, disparity: np.ndarray, terms: Mapping[str, Any],
+        image: np.ndarray | None, part: FrameResult,
+    ) -> None:  # fmt: skip
+        """One estimate made ready for the pair and flicker stages (the same ego-motion frame)."""
+        if self.pairs is not None:
+            part.prepared[method] = self.pairs.prepare(disparity, **terms, image=image)
+        if self.flicker is not None:
+            made = part.prepared[method].motion if method in part.prepared else None
+            made = made or self.flicker.prepare(disparity, **terms, image=image)
+            part.flicker_frames[method] = made
 
     def _score_method(
         self,
@@ -325,9 +361,8 @@ class EvaluationCore:
                 self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
-            if self.pairs is not None:
-                image = None if pair is None else pair.left
-                part.prepared[method] = self.pairs.prepare(frame.disparity, **terms, image=image)
+            image = None if pair is None else pair.left
+            self._prepare(method, frame.disparity, terms, image, part)
             if self.error_images:
                 part.errors[method] = self.evaluator.error_map(reference, frame.disparity, **terms)
                 part.partition = reference.partition
@@ -485,25 +520,23 @@ class EvaluationCore:
         pair: ImagePair,
         camera: Camera | None,
         result: FrameResult,
-    ) -> FrameResult:
-        """No ground truth: each method's GT-free scores alone (a bad estimate: failed)."""
+    ) -> Camera | None:
+        """Each method's GT-free scores alone (a bad one: failed); its first DisparityImage's camera."""
+        given = None
         for method, (stamp, msg) in estimates.items():
             topic = self._topic(method)
             try:
                 frame = disparity_from_msg(msg, topic)
+                given = given or frame.camera
                 result.scores[method] = self._score_images(
                     method, frame, frame_set, pair, camera, result
                 )
                 result.estimate_stamps[method] = stamp
-                if self.pairs is not None:
-                    terms = frame.scoring(camera)
-                    result.prepared[method] = self.pairs.prepare(
-                        frame.disparity, **terms, image=pair.left
-                    )
+                self._prepare(method, frame.disparity, frame.scoring(camera), pair.left, result)
             except DispevalError as error:
                 self._count_failed(method)
                 result.problems.append((method, f"{topic} at {stamp}: {error}"))
-        return result
+        return given
 
     def extrinsic(self, camera_frame: str, cloud_frame: str) -> np.ndarray:
         """The cloud → camera transform: explicit, the lookup hook, or /tf_static's chain."""

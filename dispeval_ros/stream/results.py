@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import Partition, Scores
+from dispeval_ros.core.egomotion import MotionFrame
 from dispeval_ros.core.temporal import PairScores
+from dispeval_ros.stream.flicker import FlickerInput, FlickerScore
 from dispeval_ros.stream.pairs import MethodPairInput, MotionPair, PairInput
 
 
@@ -38,8 +40,13 @@ class FrameResult:
     motion_pairs: list[MotionPair] = field(default_factory=list)
     """With ``egomotion``: the ego-motion residuals scored with this frame (of its pair, and
     of earlier pairs that waited for the motion source: each names its stamps)."""
+    flicker: list[FlickerScore] = field(default_factory=list)
+    """With ``flicker``, after :meth:`EvaluationCore.window`: the windows this frame closed
+    (each names its first and last stamps; ended early by this frame: the frame before)."""
     pair_input: PairInput | None = None  # for the pair stage, dropped once it ran
     prepared: dict[str, MethodPairInput] = field(default_factory=dict, repr=False)
+    flicker_input: FlickerInput | None = None  # for the flicker stage, dropped once it ran
+    flicker_frames: dict[str, MotionFrame] = field(default_factory=dict, repr=False)
 
     def delays(self) -> dict[str, int]:
         """Per method: arrival minus its estimate's header stamp (ns)."""

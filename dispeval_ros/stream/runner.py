@@ -34,8 +34,8 @@ class LiveEvaluator:
     """Thread-safe, non-blocking front of :class:`EvaluationCore` for live streams.
 
     With ``workers`` > 1, results may be handed over out of stamp order; with a pair stage
-    (``temporal``, ``egomotion``) they are handed over in the join's order, each after its
-    pairs are scored.
+    (``temporal``, ``egomotion``) or flicker windows they are handed over in the join's order,
+    each after its pairs and windows are scored.
     """
 
     def __init__(
@@ -68,6 +68,7 @@ class LiveEvaluator:
         self._pair_lock = threading.Lock()
         self._taken = 0  # frames taken from the queue, and handed over in that order (pairs)
         self._handed = 0
+        self._last_stamp = 0  # of the last result handed over in order (flicker's tail)
         self._finished: dict[int, FrameResult | None] = {}
         self._ready = threading.Condition(self._lock)
         self._queue: deque[tuple[FrameSet[Any, Any], float]] = deque()
@@ -127,10 +128,10 @@ class LiveEvaluator:
             result: FrameResult | None = None
             try:
                 result = self.core.score(frame_set)
-                if self.core.pairs is None:
+                if not self.core.ordered:
                     self.on_result(result)
             finally:
-                if self.core.pairs is not None:
+                if self.core.ordered:
                     self._in_order(turn, result)
                 with self._lock:
                     self._busy -= 1
@@ -151,7 +152,8 @@ class LiveEvaluator:
                 ready = self._finished.pop(self._handed)
                 self._handed += 1
                 if ready is not None:
-                    self.core.pair(ready)
+                    self.core.window(self.core.pair(ready))
+                    self._last_stamp = ready.stamp
                     self.on_result(ready)
 
     def wait_idle(self, timeout: float | None = None) -> bool:
@@ -178,6 +180,23 @@ class LiveEvaluator:
             self._ready.notify_all()
         for worker in self._workers:
             worker.join(timeout)
+        if flush:
+            self._finish_windows()
+
+    def _finish_windows(self) -> None:
+        """The flicker windows still open at the end, handed over as a frame of their own.
+
+        It has no scores (each window is on a status of its own: :func:`~dispeval_ros.stream.
+        vectors.result_statuses`) and is stamped 1 ns after the last frame handed over: no
+        frame's stamp, so no summarizer takes it for a frame seen again (a new sequence).
+        """
+        with self._pair_lock:
+            tail = self.core.finish_windows()
+            if tail is None or not (tail.windows or tail.problems):
+                return
+            stamp = self._last_stamp + 1
+            result = FrameResult(stamp, {}, {}, list(tail.problems), flicker=list(tail.windows))
+        self.on_result(result)
 
     def counts(self) -> dict[str, MethodCounts]:
         """Per method: matched (scored), unmatched, dropped (incl. queue drops), failed."""

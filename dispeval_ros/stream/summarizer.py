@@ -21,6 +21,7 @@ from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.objectives import is_pair_measure
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.core.records import (
+    FrameFlicker,
     FrameMotion,
     FramePair,
     FrameScores,
@@ -33,6 +34,7 @@ from dispeval_ros.core.timing import is_timing_measure
 from dispeval_ros.errors import ConfigurationError
 from dispeval_ros.io.jsonio import write_json
 from dispeval_ros.io.store import SUMMARY_JSON, TIMING_JSON, ResultsStore
+from dispeval_ros.stream.flicker import FlickerScore
 from dispeval_ros.stream.vectors import OK, StatusRecord, format_number
 from dispeval_ros.summary import RunSummary, summarize
 
@@ -149,6 +151,7 @@ class SummarizerCore:
         self._timing: list[FrameTiming] = []
         self._pairs: list[FramePair] = []
         self._motion: list[FrameMotion] = []
+        self._flicker: list[FrameFlicker] = []
         self._units = len(self.store.done_units(self.sequence))
         self.summary: RunSummary | None = None
         self.frames = 0
@@ -166,7 +169,9 @@ class SummarizerCore:
         arrivals: Mapping[str, tuple[int, int]] | None = None,
         pairs: Mapping[str, tuple[int, PairScores]] | None = None,
         motion: Mapping[str, tuple[int, TemporalSums]] | None = None,
+        *,
         drift: Mapping[str, DriftSums] | None = None,
+        flicker: Mapping[str, FlickerScore] | None = None,
     ) -> RunSummary | None:
         """One frame's scores; returns a fresh summary when a unit was just written.
 
@@ -175,9 +180,14 @@ class SummarizerCore:
         bag`` keeps its arrival too. Without scores only the arrivals are recorded. ``pairs``:
         per method, the pair ending at this frame (the earlier frame's stamp, its scores), stored
         with the unit as ``dispeval bag --temporal`` stores it; ``motion``: likewise its
-        ego-motion residual, and ``drift`` that pair's LiDAR drift.
+        ego-motion residual, and ``drift`` that pair's LiDAR drift; ``flicker``: per method, the
+        flicker window closed with it.
         """
         drifts = drift or {}
+        self._flicker.extend(
+            FrameFlicker(self.sequence, w.start, w.stamp, method, w.frames, w.sums)
+            for method, w in (flicker or {}).items()
+        )
         self._motion.extend(
             FrameMotion(self.sequence, int(stamp), method, previous, sums, drifts.get(method))
             for method, (previous, sums) in (motion or {}).items()
@@ -209,13 +219,15 @@ class SummarizerCore:
             counts[frame.method] = MatchCounts(previous.matched + 1, 0, 0, 0)
         unit = f"{self._units:06d}"
         self.store.add_unit(
-            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs, self._motion
-        )
+            self.sequence, unit, self._pending, (), counts, self._timing, self._pairs,
+            self._motion, self._flicker,
+        )  # fmt: skip
         self._units += 1
         self._pending = []
         self._timing = []
         self._pairs = []
         self._motion = []
+        self._flicker = []
         # Live summaries come from the running totals (O(1) per frame); per-frame objectives
         # and timing ones need every frame and so read the database. finish() always does.
         timed = any(

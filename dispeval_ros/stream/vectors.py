@@ -9,6 +9,7 @@ raw accumulator row (``criterion/sums``) so a summarizer rebuilds the exact :cla
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ if TYPE_CHECKING:
     from dispeval_ros.core.lidar_drift import DriftSums
     from dispeval_ros.core.temporal import PairScores
     from dispeval_ros.stream.core import FrameResult
+    from dispeval_ros.stream.flicker import FlickerScore
 
 OK, WARN, ERROR = 0, 1, 2
 SUMS_KEY = "sums"
@@ -68,6 +70,13 @@ DRIFT_KEY_PREFIX = "lidar_drift/"
 :data:`DRIFT_META` (thresholds, missing policy, hidden test ``W,G``)."""
 DRIFT_SUMS_KEY = "drift_sums"
 DRIFT_META = ("_drift_thresholds", "_drift_policy", "_drift_visibility")
+FLICKER_PREFIX = "flicker/"
+"""The flicker window that closed with this frame (``flicker``): ``flicker/gtfree:CRITERION/
+VALUE`` (temporal noise of a static camera, not accuracy), its sums ``.../flicker_sums``, and
+``_flicker_start``, ``_flicker_stamp`` (its first and last frames), ``_flicker_frames``,
+``_flicker_thresholds``."""
+FLICKER_SUMS_KEY = "flicker_sums"
+FLICKER_META = ("_flicker_start", "_flicker_stamp", "_flicker_frames", "_flicker_thresholds")
 META_KEYS = (
     "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
     DELAY_KEY,
@@ -316,9 +325,11 @@ def read_pairs(
     record: StatusRecord,
     pairs: dict[str, tuple[int, PairScores]],
     motion: dict[str, tuple[int, TemporalSums]],
+    *,
     drift: dict[str, DriftSums] | None = None,
+    flicker: dict[str, FlickerScore] | None = None,
 ) -> None:
-    """Add a method status's pair, ego-motion residual and drift, where it has them, by name.
+    """Add a method status's pair, residual, drift and flicker window, where it has them.
 
     What every summarizer reads of a status beside its scores (:func:`scores_from_status`).
     """
@@ -332,6 +343,43 @@ def read_pairs(
     moved = motion_from_status(record.values)
     if moved is not None:
         motion[record.name] = moved
+    window = flicker_from_status(record.name, record.values)
+    if window is not None and flicker is not None:
+        flicker[record.name] = window
+
+
+def flicker_values(window: FlickerScore) -> list[tuple[str, str]]:
+    """The keys of a flicker window (read back by :func:`flicker_from_status`)."""
+    sums = window.sums
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
+        name = f"{FLICKER_PREFIX}{GT_FREE_PREFIX}{criterion}/"
+        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
+        values.append((name + FLICKER_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    meta = (str(window.start), str(window.stamp), str(window.frames),
+            " ".join(format_number(t) for t in sums.thresholds))  # fmt: skip
+    return [*values, *zip(FLICKER_META, meta, strict=True)]
+
+
+def flicker_from_status(method: str, values: Sequence[tuple[str, str]]) -> FlickerScore | None:
+    """The flicker window a status carries, else None."""
+    from dispeval_ros.io.store.flicker import restored_flicker
+    from dispeval_ros.stream.flicker import FlickerScore
+
+    table = dict(values)
+    if FLICKER_META[0] not in table:
+        return None
+    suffix, start = "/" + FLICKER_SUMS_KEY, len(FLICKER_PREFIX) + len(GT_FREE_PREFIX)
+    keys = [k for k, _ in values if k.startswith(FLICKER_PREFIX) and k.endswith(suffix)]
+    try:
+        first, last, frames, levels = (table[key] for key in FLICKER_META)
+        sums = np.array([[float(v) for v in table[k].split()] for k in keys])
+        restored = restored_flicker(
+            [k[start : -len(suffix)] for k in keys], [float(t) for t in levels.split()], sums
+        )
+        return FlickerScore(method, int(first), int(last), int(frames), restored)
+    except (KeyError, ValueError):
+        raise InputError("the diagnostic status has malformed flicker keys") from None
 
 
 def pair_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, PairScores] | None:
@@ -363,7 +411,7 @@ def result_statuses(
     here = [p for p in result.motion_pairs if p.stamp == result.stamp]
     motion = {p.method: (p.previous, p.sums) for p in here}
     drift = {p.method: p.drift for p in here}
-    return [
+    statuses = [
         scores_status(
             method,
             topics[method],
@@ -379,6 +427,23 @@ def result_statuses(
         )
         for method, scores in result.scores.items()
     ]
+    windows = {w.method: w for w in result.flicker}  # (one per method and frame at most)
+    return [
+        dataclasses.replace(s, values=(*s.values, *flicker_values(windows[s.name])))
+        if s.name in windows
+        else s
+        for s in statuses
+    ] + [  # a window closed by its method's missing frame, or by the end of the stream
+        StatusRecord(m, topics[m], OK, "flicker window", tuple(flicker_values(w)))
+        for m, w in windows.items()
+        if m not in result.scores
+    ]
+
+
+def window_only(record: StatusRecord) -> bool:
+    """Whether a status carries a flicker window and no scores (see :func:`result_statuses`)."""
+    keys = [key for key, _ in record.values]
+    return FLICKER_META[0] in keys and not any(k.endswith("/" + SUMS_KEY) for k in keys)
 
 
 def _timing_values(

@@ -261,7 +261,7 @@ def test_the_scores_statuses_carry_each_pairs_drift_and_a_summarizer_stores_it(
         scores, pairs, motion, drifts = {}, {}, {}, {}
         for status in result_statuses(result, topics):
             scores[status.name] = scores_from_status(status.values)
-            read_pairs(status, pairs, motion, drifts)
+            read_pairs(status, pairs, motion, drift=drifts)
             drift = drift_from_status(status.values)
             if status.name not in here:
                 assert drift is None
@@ -276,7 +276,7 @@ def test_the_scores_statuses_carry_each_pairs_drift_and_a_summarizer_stores_it(
             value = keys[f"{DRIFT_KEY_PREFIX}drift:all/mean"]
             assert float(value) == expected.summary("all")["mean"]
             seen += 1
-        core.add(result.stamp, scores, None, None, motion, drifts)
+        core.add(result.stamp, scores, None, None, motion, drift=drifts)
     assert seen == (FRAMES - 1) * len(METHODS)
     assert core.finish() is not None
     with ResultsStore.open(tmp_path / "live") as store:

@@ -15,9 +15,10 @@ import numpy as np
 from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.measures import Scores, quantile_level
-from dispeval_ros.core.records import FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import FrameFlicker, FrameTiming, MatchCounts, Problem
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.io.store.flicker import flicker_series, read_flicker
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.pairs import (
     motion_series,
@@ -31,6 +32,7 @@ from dispeval_ros.io.store.schema import (
     _FRAME_ORDER,
     _ORDERED_FRAMES,
     DRIFT_TABLE,
+    FLICKER_TABLE,
     MOTION_TABLE,
     PAIRS_TABLE,
     RESULTS_FILE,
@@ -403,6 +405,22 @@ class ResultsReader:
         if not self.records_motion():
             return None
         return motion_series(self._db, str(self.path), sequence)
+
+    def records_flicker(self) -> bool:
+        """Whether flicker windows can be stored (a database older than them: no)."""
+        return has_table(self._db, FLICKER_TABLE)
+
+    def flicker(self, sequence: str) -> dict[str, tuple[int, int, TemporalSums]] | None:
+        """Per method: its windows in ``sequence``, their frames, their sums pooled (None: not kept)."""
+        if not self.records_flicker():
+            return None
+        return read_flicker(self._db, str(self.path), sequence, self._names("methods"))
+
+    def flicker_series(self, sequence: str) -> dict[str, list[FrameFlicker]] | None:
+        """Per method, its flicker windows one by one; None: not kept."""
+        if not self.records_flicker():
+            return None
+        return flicker_series(self._db, str(self.path), sequence)
 
     def problems(self, sequence: str | None = None) -> list[Problem]:
         """Recorded problems of one sequence (or all), in the order they were written."""

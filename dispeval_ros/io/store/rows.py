@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core.records import (
+    FrameFlicker,
     FrameMotion,
     FramePair,
     FrameScores,
@@ -17,6 +18,7 @@ from dispeval_ros.core.records import (
     Problem,
 )
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.store.flicker import flicker_rows
 from dispeval_ros.io.store.pairs import drift_rows, motion_rows, pair_rows
 from dispeval_ros.io.store.schema import _BLOB, _Layout
 
@@ -37,6 +39,7 @@ class PreparedUnit:
     pair_rows: list[tuple[object, ...]] = field(default_factory=list)
     motion_rows: list[tuple[object, ...]] = field(default_factory=list)
     drift_rows: list[tuple[object, ...]] = field(default_factory=list)
+    flicker_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -53,6 +56,7 @@ def prepare_unit(
     timing: Sequence[FrameTiming] = (),
     pairs: Sequence[FramePair] = (),
     motion: Sequence[FrameMotion] = (),
+    flicker: Sequence[FrameFlicker] = (),
 ) -> PreparedUnit:
     """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
     layout = _unit_layout(unit, frames)
@@ -95,6 +99,7 @@ def prepare_unit(
         pair_rows(sequence, unit, pairs),
         motion_rows(sequence, unit, motion),
         drift_rows(sequence, unit, motion),
+        flicker_rows(sequence, unit, flicker),
     )
 
 

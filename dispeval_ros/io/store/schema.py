@@ -98,6 +98,17 @@ _DRIFT_SCHEMA = (
 ``motion_pairs``; made with a new database as ``pairs`` (an older one reads as not recorded)."""
 _INSERT_DRIFT = f"INSERT INTO drift_pairs ({_DRIFT_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
 _SELECT_DRIFT = f"SELECT {_DRIFT_COLUMNS} FROM drift_pairs"
+FLICKER_TABLE = "flicker_windows"
+_FLICKER_COLUMNS = "sequence, start, method, stamp, frames, criteria, thresholds, sums"
+_FLICKER_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS flicker_windows (sequence TEXT NOT NULL, start INTEGER NOT "
+    "NULL, method TEXT NOT NULL, stamp INTEGER NOT NULL, frames INTEGER NOT NULL, criteria TEXT "
+    "NOT NULL, thresholds BLOB NOT NULL, sums BLOB NOT NULL, PRIMARY KEY (sequence, start, method))"
+)
+"""Each method's flicker sums of a window (``flicker``), ``start`` and ``stamp`` its first and
+last frames' stamps; made with a new database as ``pairs``."""
+_INSERT_FLICKER = f"INSERT INTO flicker_windows ({_FLICKER_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
+_SELECT_FLICKER = f"SELECT {_FLICKER_COLUMNS} FROM flicker_windows"
 
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
@@ -337,7 +348,7 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        later = (_TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _DRIFT_SCHEMA)
+        later = (_TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _DRIFT_SCHEMA, _FLICKER_SCHEMA)
         for statement in (*_SCHEMA, *later):
             connection.execute(statement)
         connection.executemany(

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from dispeval_ros.core.records import (
+    FrameFlicker,
     FrameMotion,
     FramePair,
     FrameScores,
@@ -25,16 +26,19 @@ from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
     _INSERT_DRIFT,
+    _INSERT_FLICKER,
     _INSERT_MOTION,
     _INSERT_PAIR,
     _INSERT_TIMING,
     _PROVENANCE_TABLE,
     _SELECT_DRIFT,
+    _SELECT_FLICKER,
     _SELECT_MOTION,
     _SELECT_PAIRS,
     _SELECT_TIMING,
     DRIFT_TABLE,
     FAILED_MARK,
+    FLICKER_TABLE,
     MOTION_TABLE,
     PAIRS_TABLE,
     RESULTS_FILE,
@@ -141,6 +145,7 @@ class ResultsWriter(ResultsReader):
         timing: Sequence[FrameTiming] = (),
         pairs: Sequence[FramePair] = (),
         motion: Sequence[FrameMotion] = (),
+        flicker: Sequence[FrameFlicker] = (),
     ) -> None:
         """Write one unit of work in one transaction and mark it done; a done unit is a no-op.
 
@@ -151,7 +156,7 @@ class ResultsWriter(ResultsReader):
         if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
         self.add_prepared(
-            prepare_unit(sequence, unit, frames, problems, counts, timing, pairs, motion)
+            prepare_unit(sequence, unit, frames, problems, counts, timing, pairs, motion, flicker)
         )
 
     def _written(self, sequence: str, unit: str, failure: bool) -> bool:
@@ -210,6 +215,7 @@ class ResultsWriter(ResultsReader):
                 (self.records_pairs(), _INSERT_PAIR, pairs, "a pair"),
                 (self.records_motion(), _INSERT_MOTION, prepared.motion_rows, "a motion pair"),
                 (self.records_drift(), _INSERT_DRIFT, prepared.drift_rows, "a drift pair"),
+                (self.records_flicker(), _INSERT_FLICKER, prepared.flicker_rows, "a window"),
             )
             for recorded, statement, rows, what in later_tables:
                 if not (rows and recorded):
@@ -309,6 +315,7 @@ class ResultsWriter(ResultsReader):
                 (PAIRS_TABLE, _INSERT_PAIR, _SELECT_PAIRS, "pairs"),
                 (MOTION_TABLE, _INSERT_MOTION, _SELECT_MOTION, "ego-motion pairs"),
                 (DRIFT_TABLE, _INSERT_DRIFT, _SELECT_DRIFT, "drift pairs"),
+                (FLICKER_TABLE, _INSERT_FLICKER, _SELECT_FLICKER, "flicker windows"),
             ):
                 self._add_later_table(other, table, insert, select, what)
         self._layout = self._read_layout()
