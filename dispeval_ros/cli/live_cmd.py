@@ -103,9 +103,9 @@ def run_command(args: argparse.Namespace) -> int:
     from dispeval_ros.dds.evaluator import warm_up
     from dispeval_ros.dds.session import LiveSession
     from dispeval_ros.dds.wire import vector_topic
+    from dispeval_ros.stream.alarms import AlarmThresholds
     from dispeval_ros.stream.summarizer import SummarizerConfig
     from dispeval_ros.stream.topics import GROUPS_TOPIC, SCORES_TOPIC
-    from dispeval_ros.stream.vectors import AlarmThresholds
 
     for method in config.methods:
         vector_topic(method)

@@ -17,10 +17,10 @@ from typing import Any
 from dispeval_ros.dds.evaluator import DdsEvaluator
 from dispeval_ros.dds.summarizer import DdsSummarizer
 from dispeval_ros.dds.transport import DdsTransport
+from dispeval_ros.stream.alarms import AlarmThresholds
 from dispeval_ros.stream.config import QUEUE_SIZE
 from dispeval_ros.stream.core import CoreConfig, MethodCounts
 from dispeval_ros.stream.summarizer import SummarizerConfig
-from dispeval_ros.stream.vectors import AlarmThresholds
 from dispeval_ros.summary import RunSummary
 
 

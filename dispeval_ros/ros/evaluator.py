@@ -59,6 +59,7 @@ from dispeval_ros.ros import convert, static_tf
 from dispeval_ros.ros.lifecycle import run_node
 from dispeval_ros.ros.param_table import EVALUATOR_PARAMETERS
 from dispeval_ros.ros.params import declare_parameters, evaluator_options
+from dispeval_ros.stream.alarms import AlarmThresholds
 from dispeval_ros.stream.config import TF_TOPIC
 from dispeval_ros.stream.core import (
     CAMERA_INFO_TYPE,
@@ -83,7 +84,6 @@ from dispeval_ros.stream.topics import (
     method_topic,
 )
 from dispeval_ros.stream.vectors import (
-    AlarmThresholds,
     problem_statuses,
     result_statuses,
     score_vector,

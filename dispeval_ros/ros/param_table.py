@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from dispeval_ros.core import registry
 from dispeval_ros.core.objectives import DEFAULT_OBJECTIVES_TEXT
 from dispeval_ros.core.temporal import PRESETS
+from dispeval_ros.stream.alarms import DELAY_ALARM
 from dispeval_ros.stream.config import QUEUE_SIZE, core_default, field_default
 from dispeval_ros.stream.flicker import FLICKER_RULE
 from dispeval_ros.stream.join import LATENESS_RULE
@@ -25,7 +26,6 @@ from dispeval_ros.stream.topics import (
     SCORES_TOPIC,
     method_topic,
 )
-from dispeval_ros.stream.vectors import DELAY_ALARM
 
 BOOL, INTEGER, DOUBLE, STRING, STRING_ARRAY = "bool", "integer", "double", "string", "string[]"
 DEFAULT_MEASURES_KEYWORD = "default"

@@ -34,11 +34,11 @@ from dispeval_ros.ros.param_table import (
     Param,
     ParamValue,
 )
+from dispeval_ros.stream.alarms import AlarmThresholds
 from dispeval_ros.stream.config import FieldNames, core_default
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.topics import NAMESPACE
-from dispeval_ros.stream.vectors import AlarmThresholds
 from dispeval_ros.summary import GRANULARITIES
 
 __all__ = [  # the table's names stay importable from here
