@@ -484,6 +484,11 @@ class TransformHistory:
         The edges used: those between ``camera_frame`` and its fixed frame when given, else
         those of the chains looked up so far, else every ``/tf`` edge. False without any.
         """
+        until = self.answers_until(camera_frame)
+        return until is not None and until >= stamp_ns
+
+    def answers_until(self, camera_frame: str | None = None) -> int | None:
+        """The latest stamp every dynamic edge used (:meth:`ready`'s) has reached, or None."""
         with self._lock:
             edges: list[_Edge]
             try:
@@ -499,8 +504,10 @@ class TransformHistory:
                     }
                     edges = [self._edges[c] for c in sorted(used)] or list(self._edges.values())
             except (TransformDataError, TransformChainError):
-                return False
-            return bool(edges) and all(e.stamps and e.stamps[-1] >= stamp_ns for e in edges)
+                return None
+            if not edges or not all(e.stamps for e in edges):
+                return None
+            return min(e.stamps[-1] for e in edges)
 
 
 def _raise_first(problems: list[str]) -> None:

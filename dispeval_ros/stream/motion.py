@@ -82,6 +82,12 @@ class MotionSource:
             self._mount(camera_frame)
         return self.history.ready(stamp_ns, camera_frame)
 
+    def answers_until(self, camera_frame: str | None = None) -> int | None:
+        """``TransformHistory.answers_until``, the :attr:`mount` added once the frames are known."""
+        if camera_frame is not None:
+            self._mount(camera_frame)
+        return self.history.answers_until(camera_frame)
+
     def _mount(self, camera_frame: str) -> None:
         """The mount as the static edge odometry child → ``camera_frame`` (once, when known)."""
         child = self._odometry_child

@@ -71,6 +71,12 @@ DRIFT_RULE = (
 MOTION_WAIT = 8
 """Ego-motion pairs kept waiting for the motion source at most (then the oldest is scored
 with what it holds): bounds memory when ``/tf`` lags or never comes."""
+LIVE_MOTION_GRACE_S = 0.25
+"""Live, a pair waits this long (s) for the /tf at its later stamp (odometry is often
+published a few ms after the image), then is scored with what the history holds."""
+LIVE_MOTION_STALE_NS = 500_000_000
+"""Live, /tf whose newest sample is further behind a frame than this is not waited for: it
+has stopped (or never reaches the camera), and waiting would only slow every frame."""
 Motion = Callable[[str, int, int], np.ndarray]
 """``motion(camera_frame, t0_ns, t1_ns)``: the pose of the camera at ``t1`` in its frame at
 ``t0`` (4×4; it maps points of the camera frame at ``t1`` into the frame at ``t0``), the

@@ -10,6 +10,7 @@ and hands each :class:`~dispeval_ros.stream.core.FrameResult` to the front end's
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from collections import deque
@@ -19,6 +20,10 @@ from typing import Any
 
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult, MethodCounts
 from dispeval_ros.stream.join import FrameSet
+from dispeval_ros.stream.pairs import LIVE_MOTION_GRACE_S, LIVE_MOTION_STALE_NS
+
+MOTION_POLL_S = 0.002
+"""How often a pair waiting for /tf looks again (s)."""
 
 
 @dataclass
@@ -28,6 +33,9 @@ class LiveStats:
     queue_drops: int = 0
     results: int = 0
     latencies: list[float] = field(default_factory=list)
+    motion_waits: int = 0
+    """Pairs that waited (or wait now) for /tf at their later stamp (at most
+    :data:`LIVE_MOTION_GRACE_S`)."""
 
 
 class LiveEvaluator:
@@ -152,9 +160,31 @@ class LiveEvaluator:
                 ready = self._finished.pop(self._handed)
                 self._handed += 1
                 if ready is not None:
+                    self._await_motion(ready)
                     self.core.window(self.core.pair(ready))
                     self._last_stamp = ready.stamp
                     self.on_result(ready)
+
+    def _await_motion(self, result: FrameResult) -> None:
+        """Give /tf that lags the frame a moment to reach its stamp before its pair is scored.
+
+        Only while /tf is flowing (its newest sample within :data:`LIVE_MOTION_STALE_NS` of
+        the frame); at most :data:`LIVE_MOTION_GRACE_S`.
+        """
+        motion, frame = self.core.motion, result.pair_input
+        if motion is None or frame is None or not frame.camera_frame or self._stopping:
+            return  # (stopping: no /tf is coming any more)
+        deadline = self._clock() + LIVE_MOTION_GRACE_S
+        for attempt in itertools.count():
+            until = motion.answers_until(frame.camera_frame)
+            behind = None if until is None else result.stamp - until
+            if behind is None or behind <= 0 or behind > LIVE_MOTION_STALE_NS:
+                return
+            if self._clock() >= deadline:
+                return
+            if attempt == 0:
+                self.stats.motion_waits += 1
+            time.sleep(MOTION_POLL_S)
 
     def wait_idle(self, timeout: float | None = None) -> bool:
         """Block until every queued frame is scored (for tests and orderly shutdown)."""
