@@ -63,7 +63,9 @@ def compare(matrix: np.ndarray, repeat: int) -> None:
     )
     print(f"    moocore.pareto_rank          {t_moocore:9.2f} ms   1.0×")
     print(f"    astar_groups                 {t_ours:9.2f} ms   {t_moocore / t_ours:6.1f}× faster")
-    print(f"    pareto_front (A* only)       {t_front:9.2f} ms   {t_moocore / t_front:6.1f}× faster")
+    print(
+        f"    pareto_front (A* only)       {t_front:9.2f} ms   {t_moocore / t_front:6.1f}× faster"
+    )
 
 
 def wide_front(methods: int, objectives: int = 12, seed: int = 1) -> np.ndarray:

@@ -91,25 +91,25 @@ def _dominated_by_front(
     block_min: np.ndarray,
     block_size: np.ndarray,
     next_block: np.ndarray,
-    work: np.ndarray,
-) -> bool:  # pragma: no cover - compiled
+) -> tuple[bool, int]:  # pragma: no cover - compiled
     """Whether a member of the front starting at ``first_block`` dominates ``row``.
 
     Every member precedes ``row`` in sum order, so ``t ≤ row`` everywhere with a smaller sum
     is dominance; oldest blocks first (the smallest sums, the likeliest dominators).
-    ``work[0]`` counts the blocks and members looked at (the budget of :func:`fronts_by_sum`).
+    Also returns how many blocks and members it looked at (the budget of :func:`fronts_by_sum`).
     """
     m = row.shape[0]
     b = first_block
+    looked = 0
     while b >= 0:
-        work[0] += 1
+        looked += 1
         possible = True
         for j in range(m):
             if row[j] < block_min[b, j]:  # better than every member of the block here
                 possible = False
                 break
         if possible:
-            work[0] += block_size[b]
+            looked += block_size[b]
             for k in range(block_size[b]):
                 if block_sums[b, k] < row_sum:  # an equal sum is an incomparable row
                     dominated = True
@@ -118,9 +118,9 @@ def _dominated_by_front(
                             dominated = False
                             break
                     if dominated:
-                        return True
+                        return True, looked
         b = next_block[b]
-    return False
+    return False, looked
 
 
 def fronts_small(ranks: np.ndarray, first_only: bool) -> np.ndarray:
@@ -199,15 +199,15 @@ def _insert_sorted(
     last_block = np.empty(n, dtype=np.int64)
     n_blocks = 0
     n_fronts = 0
-    work = np.zeros(1, dtype=np.int64)
+    work = 0
     last_work = 0  # work at the previous check, _CHECK_EVERY rows ago
     for p in range(n):
         if p % _CHECK_EVERY == 0:
-            rate = (work[0] - last_work) / _CHECK_EVERY  # per row, lately
-            if p * _CHECK_AFTER >= n and work[0] + rate * (n - p) > budget:
+            rate = (work - last_work) / _CHECK_EVERY  # per row, lately
+            if p * _CHECK_AFTER >= n and work + rate * (n - p) > budget:
                 result[0] = _OVER_BUDGET
                 return result
-            last_work = work[0]
+            last_work = work
         s = order[p]
         if twin[s] != s:
             continue
@@ -216,7 +216,7 @@ def _insert_sorted(
         high = min(n_fronts, 1) if first_only else n_fronts
         while low < high:  # dominated by front k ⇒ dominated by every front before k
             middle = (low + high) // 2
-            if _dominated_by_front(
+            dominated, looked = _dominated_by_front(
                 row,
                 sums[s],
                 first_block[middle],
@@ -225,8 +225,9 @@ def _insert_sorted(
                 block_min,
                 block_size,
                 next_block,
-                work,
-            ):
+            )
+            work += looked
+            if dominated:
                 low = middle + 1
             else:
                 high = middle
@@ -327,10 +328,12 @@ _CHUNK_WORDS = 1 << 19
 _FRONT_WORDS = 1 << 23
 
 # The sum-order insertion is kept while its projected comparisons (blocks and members looked
-# at) times this stay within the bitset sort's word operations. Measured one comparison ≈ 7
-# words' time; 4 sits between the cases of bench/bench_models.py where each sort wins (the
-# correlated sweeps need ≥ 6, random and weakly correlated ones at most 2.5).
-WORDS_PER_COMPARISON = 4.0
+# at) times this stay within the bitset sort's word operations. Measured on the inputs of
+# bench/bench_models.py at N = 10³ … 3·10⁴, M = 3 … 50: where the insertion was faster its
+# comparisons were words / 1.4 … / 67 (correlated sweeps), where the bitsets were faster
+# words / 0.3 … / 1.3 (random and weakly correlated); a sweep whose noise is a third of its
+# spread (words / 2.5) stays with the insertion, 1.7× slower than the bitsets there.
+WORDS_PER_COMPARISON = 1.5
 
 
 def bitset_work(n: int, m: int) -> float:
