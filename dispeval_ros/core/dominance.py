@@ -1,4 +1,4 @@
-"""Compiled non-dominated sorting on integer ranks: no method × method matrix is ever built.
+"""Compiled non-dominated sorting on integer ranks: no method × method table is ever built.
 
 Every objective is first replaced by its dense rank (equal values share a rank, NaN is already
 ``+inf``, ``-0.0`` equals ``0.0``), so dominance is exact integer comparison and ties, duplicate
@@ -11,7 +11,12 @@ fronts found so far, in an order where a dominator always comes first:
   once, and the method's front found by binary search over the fronts (ENS-BS, Zhang et al.
   2015). A front's members are kept in small blocks with their per-objective minimum, so a
   block is skipped when the method is better than all its members on some objective;
-  otherwise members are compared with an early exit.
+  otherwise members are compared with an early exit. Fast while fronts are small (correlated
+  objectives); its comparisons grow with the fronts, so on random or weakly correlated
+  objectives (most methods in a few huge fronts) it gives up early, by a projected budget,
+  for a bitset sort: each method's dominators as one bit per method, ANDed objective by
+  objective (as in Merge Non-Dominated Sorting, Moreno et al. 2018), a few cache-sized chunks
+  of methods at a time, about ``(M − 1) N² / 128`` word operations (:func:`fronts_many`).
 
 The compiled functions are only compiled when a model is first evaluated with more than
 :data:`SMALL_PROBLEM` methods (numba compiles lazily and caches on disk); fewer methods, the
