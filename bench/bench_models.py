@@ -7,8 +7,10 @@ are identical to moocore's fronts. Run (``moocore`` comes with the ``test`` extr
 
 Inputs mimic a parameter sweep: every method has a latent quality and each objective is that
 quality plus noise, rounded to whole numbers (as tables print them): correlated objectives with many
-ties and duplicate rows. M = 2, 12 and 50 objectives; then the front reduction of a front of
-about 7 000 methods (two anti-correlated objective groups). The process is pinned to one core.
+ties and duplicate rows. M = 2, 12 and 50 objectives. Then the large fronts of sweeps whose
+measures barely agree: uniform random objectives (M = 4, 8, 12) and a weakly correlated case
+(latent quality plus noise twice its spread). Last, the front reduction of a front of about
+7 000 methods (two anti-correlated objective groups). The process is pinned to one core.
 """
 
 from __future__ import annotations
@@ -29,6 +31,43 @@ def sweep_objectives(methods: int, objectives: int, seed: int = 0) -> np.ndarray
     return np.round(quality + noise)
 
 
+def random_objectives(methods: int, objectives: int, seed: int = 2) -> np.ndarray:
+    """Independent uniform objectives: most methods in the first few, huge, fronts."""
+    return np.random.default_rng(seed).random((methods, objectives))
+
+
+def weakly_correlated(methods: int, objectives: int, seed: int = 3) -> np.ndarray:
+    """A latent quality plus noise of twice its spread: weakly correlated objectives."""
+    rng = np.random.default_rng(seed)
+    quality = rng.random((methods, 1))
+    return quality + rng.normal(0.0, 2.0 * quality.std(), size=(methods, objectives))
+
+
+def compare(matrix: np.ndarray, repeat: int) -> None:
+    """Time astar_groups and pareto_front against moocore.pareto_rank; check identical fronts."""
+    import moocore
+
+    methods, objectives = matrix.shape
+    ours = astar_groups(matrix)
+    theirs = moocore.pareto_rank(matrix) + 1
+    identical = bool(np.array_equal(ours, theirs))
+    same_front = bool(np.array_equal(pareto_front(matrix), theirs == 1))
+    unique_rows = len(np.unique(matrix, axis=0))
+    t_ours = timed(lambda: astar_groups(matrix), repeat)
+    t_front = timed(lambda: pareto_front(matrix), repeat)
+    t_moocore = timed(lambda: moocore.pareto_rank(matrix), repeat)
+    print(
+        f"  M = {objectives:2d}: {int(ours.max()):4d} groups, |A*| = {int((ours == 1).sum()):4d},"
+        f" {methods - unique_rows} duplicate rows; fronts identical to moocore: "
+        f"{identical}, A* identical: {same_front}"
+    )
+    print(f"    moocore.pareto_rank          {t_moocore:9.2f} ms   1.0×")
+    print(f"    astar_groups                 {t_ours:9.2f} ms   {t_moocore / t_ours:6.1f}× faster")
+    print(
+        f"    pareto_front (A* only)       {t_front:9.2f} ms   {t_moocore / t_front:6.1f}× faster"
+    )
+
+
 def wide_front(methods: int, objectives: int = 12, seed: int = 1) -> np.ndarray:
     """A matrix whose A* holds most methods: two groups of objectives pulling apart."""
     rng = np.random.default_rng(seed)
@@ -40,9 +79,7 @@ def wide_front(methods: int, objectives: int = 12, seed: int = 1) -> np.ndarray:
 
 
 def main() -> None:
-    """Time A* Groups at M = 2, 12, 50 and the front reduction."""
-    import moocore
-
+    """Time A* Groups on correlated (M = 2, 12, 50), random and weakly correlated objectives."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--methods", type=int, default=10_000, help="methods (rows), default 1e4")
     parser.add_argument("--repeat", type=int, default=5, help="timed calls per measurement")
@@ -51,27 +88,12 @@ def main() -> None:
     print(f"dispeval_ros models benchmark (one core; median of {args.repeat} calls)")
     print(f"\nA* Groups, N = {args.methods} methods, correlated objectives, rounded")
     for objectives in (2, 12, 50):
-        matrix = sweep_objectives(args.methods, objectives)
-        ours = astar_groups(matrix)
-        theirs = moocore.pareto_rank(matrix) + 1
-        identical = bool(np.array_equal(ours, theirs))
-        same_front = bool(np.array_equal(pareto_front(matrix), theirs == 1))
-        unique_rows = len(np.unique(matrix, axis=0))
-        t_ours = timed(lambda m=matrix: astar_groups(m), args.repeat)
-        t_front = timed(lambda m=matrix: pareto_front(m), args.repeat)
-        t_moocore = timed(lambda m=matrix: moocore.pareto_rank(m), args.repeat)
-        print(
-            f"  M = {objectives:2d}: {int(ours.max()):4d} groups, |A*| = {int((ours == 1).sum()):4d},"
-            f" {args.methods - unique_rows} duplicate rows; fronts identical to moocore: "
-            f"{identical}, A* identical: {same_front}"
-        )
-        print(f"    moocore.pareto_rank          {t_moocore:9.2f} ms   1.0×")
-        print(
-            f"    astar_groups                 {t_ours:9.2f} ms   {t_moocore / t_ours:6.1f}× faster"
-        )
-        print(
-            f"    pareto_front (A* only)       {t_front:9.2f} ms   {t_moocore / t_front:6.1f}× faster"
-        )
+        compare(sweep_objectives(args.methods, objectives), args.repeat)
+    print(f"\nA* Groups, N = {args.methods} methods, random objectives, uniform")
+    for objectives in (4, 8, 12):
+        compare(random_objectives(args.methods, objectives), args.repeat)
+    print(f"\nA* Groups, N = {args.methods} methods, weakly correlated objectives")
+    compare(weakly_correlated(args.methods, 12), args.repeat)
     matrix = wide_front(8000)
     group = matrix[astar_groups(matrix) == 1]
     t_reduction = timed(lambda: front_reduction(group), args.repeat)

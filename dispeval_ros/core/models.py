@@ -134,7 +134,7 @@ def _fronts(dense: npt.NDArray[np.int32], first_only: bool) -> IntArray:
         first = np.ascontiguousarray(dense[:, 0])
         second = np.ascontiguousarray(dense[:, 1])
         return dominance.fronts_two(first, second, first_only).astype(np.int_)
-    return dominance.fronts_by_sum(np.ascontiguousarray(dense), first_only).astype(np.int_)
+    return dominance.fronts_many(np.ascontiguousarray(dense), first_only).astype(np.int_)
 
 
 def _groups_of(values: FloatArray, first_only: bool) -> IntArray:
