@@ -1,0 +1,154 @@
+"""What a parameter sweep looks like: each measure's sensitivity to each parameter, and the
+sweep in parallel coordinates (parameters beside measures, A* group 1 in front).
+
+The input is one :class:`SweepPoint` per configuration (its parameter values, its measures, its
+A* group), as ``dispeval tune`` has them; nothing here reads a database. The sensitivity of a
+measure to a parameter is, for every value the parameter takes, the median and the quartiles of
+the measure over the configurations with that value (the other parameters vary across them), and
+its span: the largest minus the smallest of those medians, the measure's change the parameter
+alone accounts for. Figures are matplotlib ``Figure`` objects (no pyplot).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.report.canvas import LINE_COLOURS, new_figure, plain_numbers
+
+SENSITIVITY_PREFIX = "sensitivity_"
+"""``sensitivity_<parameter>.png``: one figure per swept parameter."""
+PARALLEL_FIGURE = "sweep_parallel.png"
+FRONT_COLOUR, REST_COLOUR = "#1a9850", "#b0b0b0"
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One configuration of a sweep: its name, parameter values, measures and A* group."""
+
+    name: str
+    values: Mapping[str, float]
+    measures: Mapping[str, float]
+    group: int
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    """One measure against one parameter: per value, the median and quartiles, and the span."""
+
+    parameter: str
+    measure: str
+    levels: tuple[float, ...]
+    median: tuple[float, ...]
+    low: tuple[float, ...]
+    """First quartiles (NaN where no configuration of that value has a finite measure)."""
+    high: tuple[float, ...]
+    span: float
+    """Largest minus smallest median (NaN with fewer than two finite medians)."""
+
+
+def swept_parameters(points: Sequence[SweepPoint]) -> list[str]:
+    """The parameters that take more than one value in the sweep, in the points' order."""
+    names = list(points[0].values) if points else []
+    return [n for n in names if len({float(p.values[n]) for p in points}) > 1]
+
+
+def sensitivities(points: Sequence[SweepPoint]) -> list[Sensitivity]:
+    """Every (swept parameter, measure) pair's sensitivity."""
+    if not points:
+        raise ConfigurationError("a sweep with no configuration has no sensitivity")
+    measures = list(points[0].measures)
+    out = []
+    for parameter in swept_parameters(points):
+        values = np.array([float(p.values[parameter]) for p in points])
+        levels = np.unique(values)
+        for measure in measures:
+            scored = np.array([float(p.measures[measure]) for p in points])
+            stats = []
+            for level in levels:
+                chosen = scored[(values == level) & np.isfinite(scored)]
+                stats.append(
+                    tuple(np.percentile(chosen, (50, 25, 75))) if chosen.size else (math.nan,) * 3
+                )
+            median, low, high = (tuple(float(s[k]) for s in stats) for k in range(3))
+            finite = [m for m in median if math.isfinite(m)]
+            span = max(finite) - min(finite) if len(finite) > 1 else math.nan
+            out.append(
+                Sensitivity(parameter, measure, tuple(levels.tolist()), median, low, high, span)
+            )
+    return out
+
+
+def sensitivity_figure(parameter: str, rows: Sequence[Sensitivity], path: Path | None) -> Any:
+    """One parameter: a panel per measure, the median (line) and quartiles (band) per value."""
+    figure = new_figure(3.2 * len(rows), 2.8)
+    panels = figure.subplots(1, len(rows), squeeze=False)[0]
+    for k, (axes, row) in enumerate(zip(panels, rows, strict=True)):
+        colour = LINE_COLOURS[k % len(LINE_COLOURS)]
+        axes.fill_between(row.levels, row.low, row.high, color=colour, alpha=0.2, linewidth=0)
+        axes.plot(row.levels, row.median, marker="o", color=colour)
+        axes.set_xlabel(parameter)
+        axes.set_title(f"{row.measure} (span {row.span:.3g})", fontsize=9, loc="left")
+        plain_numbers(axes)
+        axes.grid(True, alpha=0.3)
+    if path is not None:
+        figure.savefig(path)
+    return figure
+
+
+def parallel_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
+    """Every configuration as a line over the swept parameters and the measures, each axis
+    scaled to its range; A* group 1 drawn last, in colour, the others grey."""
+    parameters = swept_parameters(points)
+    measures = list(points[0].measures) if points else []
+    axes_names = [*parameters, *measures]
+    table = np.array(
+        [[float(p.values[n]) for n in parameters] + [float(p.measures[m]) for m in measures]
+         for p in points]
+    )  # fmt: skip
+    lows, highs = np.nanmin(table, axis=0), np.nanmax(table, axis=0)
+    scaled = (table - lows) / np.where(highs > lows, highs - lows, 1.0)
+    figure = new_figure(max(4.0, 1.1 * len(axes_names)), 3.6)
+    axes = figure.subplots()
+    columns = np.arange(len(axes_names))
+    for front in (False, True):
+        for point, line in zip(points, scaled, strict=True):
+            if (point.group == 1) == front:
+                axes.plot(columns, line, color=FRONT_COLOUR if front else REST_COLOUR,
+                          linewidth=1.4 if front else 0.6, alpha=0.9 if front else 0.5)  # fmt: skip
+    axes.set_xticks(columns, axes_names, rotation=30, ha="right", fontsize=8)
+    axes.set_yticks([])
+    for column in columns:  # each axis with its own range at its ends
+        axes.axvline(column, color="#404040", linewidth=0.5)
+        for end, value in ((0.0, lows[column]), (1.0, highs[column])):
+            axes.annotate(f"{value:.3g}", (column, end), textcoords="offset points",
+                          xytext=(0, -10 if end == 0.0 else 4), ha="center", fontsize=7)  # fmt: skip
+    axes.set_ylim(-0.1, 1.12)
+    axes.set_title(
+        f"{len(points)} configurations; A* group 1 in colour "
+        f"({sum(p.group == 1 for p in points)})",
+        fontsize=9,
+        loc="left",
+    )
+    if path is not None:
+        figure.savefig(path)
+    return figure
+
+
+def write_sweep_figures(points: Sequence[SweepPoint], folder: Path) -> list[Path]:
+    """The parallel coordinates and one sensitivity figure per swept parameter, in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / PARALLEL_FIGURE]
+    parallel_figure(points, written[0])
+    rows = sensitivities(points)
+    for parameter in swept_parameters(points):
+        path = folder / f"{SENSITIVITY_PREFIX}{parameter}.png"
+        sensitivity_figure(parameter, [r for r in rows if r.parameter == parameter], path)
+        written.append(path)
+    return written
