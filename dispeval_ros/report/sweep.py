@@ -104,7 +104,8 @@ def sensitivity_figure(parameter: str, rows: Sequence[Sensitivity], path: Path |
 
 def parallel_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
     """Every configuration as a line over the swept parameters and the measures, each axis
-    scaled to its range; A* group 1 drawn last, in colour, the others grey."""
+    scaled to its range; A* group 1 drawn last, in colour, the others grey.
+    """
     parameters = swept_parameters(points)
     measures = list(points[0].measures) if points else []
     axes_names = [*parameters, *measures]
