@@ -1,7 +1,7 @@
-"""What a parameter sweep looks like: each measure's sensitivity to each parameter, and the
-sweep in parallel coordinates (parameters beside measures, A* group 1 in front).
+"""What a parameter sweep looks like: sensitivities and parallel coordinates.
 
-The input is one :class:`SweepPoint` per configuration (its parameter values, its measures, its
+Each measure's sensitivity to each parameter, and the sweep in parallel coordinates
+(parameters beside measures, A* group 1 in front). The input is one :class:`SweepPoint` per configuration (its parameter values, its measures, its
 A* group), as ``dispeval tune`` has them; nothing here reads a database. The sensitivity of a
 measure to a parameter is, for every value the parameter takes, the median and the quartiles of
 the measure over the configurations with that value (the other parameters vary across them), and
