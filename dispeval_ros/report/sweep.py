@@ -1,12 +1,13 @@
 """What a parameter sweep looks like: sensitivities and parallel coordinates.
 
-Each measure's sensitivity to each parameter, and the sweep in parallel coordinates
-(parameters beside measures, A* group 1 in front). The input is one :class:`SweepPoint` per configuration (its parameter values, its measures, its
-A* group), as ``dispeval tune`` has them; nothing here reads a database. The sensitivity of a
-measure to a parameter is, for every value the parameter takes, the median and the quartiles of
-the measure over the configurations with that value (the other parameters vary across them), and
-its span: the largest minus the smallest of those medians, the measure's change the parameter
-alone accounts for. Figures are matplotlib ``Figure`` objects (no pyplot).
+The input is one :class:`SweepPoint` per configuration (its parameter values, its measures,
+its A* group), as ``dispeval tune`` has them; nothing here reads a database. The sensitivity
+of a measure to a parameter is, for every value the parameter takes, the median and the
+quartiles of the measure over the configurations with that value (the other parameters vary
+across them), and its span: the largest minus the smallest of those medians, the measure's
+change the parameter alone accounts for. The parallel coordinates put the swept parameters
+beside the measures, A* group 1 in front. Figures are matplotlib ``Figure`` objects (no
+pyplot).
 """
 
 from __future__ import annotations
@@ -103,8 +104,10 @@ def sensitivity_figure(parameter: str, rows: Sequence[Sensitivity], path: Path |
 
 
 def parallel_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
-    """Every configuration as a line over the swept parameters and the measures, each axis
-    scaled to its range; A* group 1 drawn last, in colour, the others grey.
+    """Every configuration as a line over the swept parameters and the measures.
+
+    Each axis is scaled to its range (written at its ends); A* group 1 is drawn last, in
+    colour, the others grey.
     """
     parameters = swept_parameters(points)
     measures = list(points[0].measures) if points else []
