@@ -42,7 +42,7 @@ class BagStreams:
     Hashing reads as much as the evaluation, so ``dispeval bag`` runs :meth:`compute`
     alongside it (``evaluate_bags(..., alongside=streams.compute)``): the reads release the GIL
     and so do BLAKE3 and sha256, so it takes what the scoring leaves of the cores (BLAKE3
-    needs about a fifth of sha256's CPU: see the README's ``dispeval bag`` table).
+    needs about a quarter of sha256's CPU: see the README's ``dispeval bag`` table).
     """
 
     def __init__(self, bags: Sequence[Path], config: CoreConfig) -> None:
