@@ -16,6 +16,7 @@ import pytest
 from dispeval_ros import __version__
 from dispeval_ros.cli.main import main
 from dispeval_ros.core.protocols import PROTOCOLS, config_sha256, get_protocol
+from dispeval_ros.errors import InputError
 from dispeval_ros.io import provenance, write_pfm
 from dispeval_ros.io.provenance import same_stream, stream_digests, verify_streams
 from dispeval_ros.io.store import ResultsStore
@@ -145,7 +146,12 @@ def test_without_blake3_the_digests_are_sha256_and_say_so(
     drives: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A ROS build without pip (blake3 has no rosdep key) records sha256 under its name."""
+    record = {"topics": stream_digests(drives["mcap"], [GT_TOPIC])}  # made where blake3 is
     monkeypatch.setattr(provenance, "HASHERS", {"sha256": hashlib.sha256})
+    with pytest.raises(
+        InputError, match=r"drive.mcap: its digests are blake3, .*pip install blake3"
+    ):
+        verify_streams(drives["mcap"], record)  # one line, not a KeyError
     assert provenance.stream_algorithm() == "sha256"
     got = stream_digests(drives["mcap"], [GT_TOPIC])
     assert got == {
