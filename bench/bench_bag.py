@@ -55,10 +55,17 @@ try:  # absent before 2026-11 (this bench also times older versions: PYTHONPATH=
     from dispeval_ros.offline.records import BagStreams
 except ImportError:  # pragma: no cover
     BagStreams = None  # type: ignore[assignment,misc]
+try:  # absent before 2026-12: the stream digests were sha256 only
+    from dispeval_ros.io.provenance import digests_to_damage, stream_algorithm
+    from dispeval_ros.offline.records import stream_topics
+except ImportError:  # pragma: no cover
+    stream_algorithm = None  # type: ignore[assignment]
 
 METHODS = ("bm_fast", "sgbm", "sgbm_3way")
 STAGE_FRAMES = 20
 """Frames held in memory to time the stages after reading (each holds ~7.5 MB of messages)."""
+SHA256_BEFORE = "(stream digests with sha256)"
+"""The stage cost of the digests as they were before BLAKE3: printed, not counted."""
 
 
 def write_drive(bag: Path, frames: int, storage: str) -> Path:
@@ -271,7 +278,13 @@ def stage_costs(bag: Path, config: CoreConfig, rounds: int) -> dict[str, tuple[f
     }
     if BagStreams is not None:
         digests = best(rounds, BagStreams([bag], config).compute)
-        costs["stream digests (provenance)"] = (digests / gts_in_bag(bag) * ms, "per frame")
+        label = f"stream digests ({stream_algorithm()})" if stream_algorithm else "stream digests"
+        costs[label] = (digests / gts_in_bag(bag) * ms, "per frame")
+    if stream_algorithm is not None and stream_algorithm() != "sha256":  # what they cost before
+        topics = stream_topics(config)
+        with BagSource(bag) as opened:
+            sha256 = best(rounds, lambda: digests_to_damage(bag, topics, opened, "sha256"))
+        costs[SHA256_BEFORE] = (sha256 / gts_in_bag(bag) * ms, "per frame")
     return costs
 
 
@@ -369,6 +382,7 @@ def main() -> None:
     for name, (value, per) in costs.items():
         print(f"  {name:32s} {value:7.2f} ms {per}")
     methods = len(METHODS)
+    costs.pop(SHA256_BEFORE, None)
     floor = costs.pop("read + deserialise (rosbags)")[0]
     per_frame = sum(v * (methods if p == "per method-frame" else 1) for v, p in costs.values())
     per_frame -= costs["open the bag"][0]

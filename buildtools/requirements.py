@@ -23,6 +23,7 @@ def requirements() -> list[str]:
         "rosbags>=0.11",
         "mcap>=1.2",
         "mcap-ros2-support>=0.5",
+        "blake3>=0.3",  # the stream digests (io/provenance.py; sha256, recorded as such, without)
     ]
     if _needs_opencv():
         required.append("opencv-python-headless>=4.5")

@@ -2,8 +2,9 @@
 
 Every results database and JSON carries one, so a published number can be traced and re-made:
 the configuration (a protocol's record or a command's options) is hashed as canonical JSON,
-and every input file or message stream scored is named with its sha256 (computed by
-:mod:`dispeval_ros.io.provenance`; nothing here reads files).
+and every input file or message stream scored is named with its digest (a file's sha256; a
+stream's BLAKE3, keyed by the algorithm's name; computed by :mod:`dispeval_ros.io.provenance`;
+nothing here reads files).
 """
 
 from __future__ import annotations

@@ -41,7 +41,8 @@ class BagStreams:
 
     Hashing reads as much as the evaluation, so ``dispeval bag`` runs :meth:`compute`
     alongside it (``evaluate_bags(..., alongside=streams.compute)``): the reads release the GIL
-    and so does sha256, so it takes what the scoring leaves of the cores.
+    and so do BLAKE3 and sha256, so it takes what the scoring leaves of the cores (BLAKE3
+    needs about a quarter of sha256's CPU: see the README's ``dispeval bag`` table).
     """
 
     def __init__(self, bags: Sequence[Path], config: CoreConfig) -> None:
@@ -77,8 +78,9 @@ def record_bag_provenance(
 ) -> dict[str, object]:
     """Hash each bag's scored streams (unless ``streams`` did), store the record and return it.
 
-    ``inputs.streams`` maps each sequence to its bag and, per topic, the sha256 and the
-    number of its serialized messages (see :func:`dispeval_ros.io.provenance.stream_digests`);
+    ``inputs.streams`` maps each sequence to its bag and, per topic, the digest (keyed by its
+    algorithm) and the number of its serialized messages (see
+    :func:`dispeval_ros.io.provenance.stream_digests`);
     for a bag damaged on the way (a recording killed mid-write), those of the messages before
     the damage and, under ``read_up_to``, where reading stopped: what was scored.
     """

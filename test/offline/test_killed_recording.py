@@ -11,11 +11,13 @@ import json
 import struct
 from pathlib import Path
 
+import blake3
 import pytest
 from bag_support import METHODS, bag_args
 from mcap.reader import make_reader
 
 from dispeval_ros.cli.main import main
+from dispeval_ros.io.provenance import verify_streams
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.make_bag import disparity_topic, synthetic_frames, write_bag
 
@@ -28,9 +30,14 @@ def killed_copy(bag: Path, share: float) -> Path:
     return out
 
 
-def digests_before(bag: Path, topics: list[str], count: int) -> dict[str, dict[str, object]]:
+HASHES = {"blake3": blake3.blake3, "sha256": hashlib.sha256}
+
+
+def digests_before(
+    bag: Path, topics: list[str], count: int, algorithm: str = "blake3"
+) -> dict[str, dict[str, object]]:
     """The digest definition over the first ``count`` messages of the intact file (file order)."""
-    digests = {topic: hashlib.sha256() for topic in topics}
+    digests = {topic: HASHES[algorithm]() for topic in topics}
     counts = dict.fromkeys(topics, 0)
     with bag.open("rb") as stream:
         for index, (_, channel, message) in enumerate(make_reader(stream).iter_messages()):
@@ -42,7 +49,7 @@ def digests_before(bag: Path, topics: list[str], count: int) -> dict[str, dict[s
                 )
                 digests[channel.topic].update(message.data)
                 counts[channel.topic] += 1
-    return {t: {"sha256": digests[t].hexdigest(), "messages": counts[t]} for t in topics}
+    return {t: {algorithm: digests[t].hexdigest(), "messages": counts[t]} for t in topics}
 
 
 @pytest.fixture(scope="module")
@@ -74,6 +81,10 @@ def test_a_killed_recording_finishes_and_resumes(killed: tuple[Path, Path], tmp_
     read = int(record["read_up_to"].split("after ")[1].split(" messages")[0])
     topics = list(record["topics"])
     assert record["topics"] == digests_before(intact, topics, read)
+    assert all(verify_streams(bag, record).values())  # it re-reads to the same damage
+    before = {**record, "topics": digests_before(intact, topics, read, "sha256")}
+    assert all(verify_streams(bag, before).values())  # as a record made with sha256 does
+    assert not any(verify_streams(intact, record).values())  # the whole file: more messages
     for method, found in scored.items():  # every scored estimate is among the hashed messages
         assert record["topics"][disparity_topic(method)]["messages"] >= found.matched, method
     assert main(bag_args(bag, out, "--resume")) == 0
