@@ -23,6 +23,7 @@ def requirements() -> list[str]:
         "rosbags>=0.11",
         "mcap>=1.2",
         "mcap-ros2-support>=0.5",
+        "pyyaml>=5.1",  # dispeval tune: space files, ROS 2 parameters files
     ]
     if _needs_opencv():
         required.append("opencv-python-headless>=4.5")
