@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.offline.records import write_run_files
     from dispeval_ros.offline.tuning.outputs import tune_rows, write_params_files, write_table
     from dispeval_ros.offline.tuning.space import read_space
-    from dispeval_ros.offline.tuning.sweep import load_scene, run_sweep
+    from dispeval_ros.offline.tuning.sweep import check_fits, load_scene, run_sweep
     from dispeval_ros.summary import objective_table
 
     _check_numbers(args)
@@ -135,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
             f"({', '.join(evaluator.measures)})"
         )
     loaded = {i: load_scene(folder, evaluator) for i, folder in enumerate(args.scene)}
+    check_fits(configurations, args.scene, loaded)
     record = _record(args, space, configurations, evaluator)
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
     progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
@@ -177,10 +178,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(_text(args, space, rows, objectives, models, report))
     print(f"\ntable: {table_file}")
+    folder = params[0].parent if params else args.out
     print(
         wrapped(
-            f"parameters files (A* group 1, node {args.node_name}): "
-            + ", ".join(str(p) for p in params)
+            f"parameters files for node {args.node_name}, one per A* group 1 configuration: "
+            f"{folder}/NAME.yaml ({plural(len(params), 'file')})"
         )
     )
     return 0
@@ -195,8 +197,11 @@ def _text(
     report: Any,
 ) -> str:
     """The sweep's summary line, the best configurations with their values, the reading."""
+    from dispeval_ros.offline.tuning.parameters import PARAMETERS
+
     swept = [name for name, values in space.axes.items() if len(values) > 1]
-    header = ["method", "A* group", "reduced", *swept, *rows[0].measures, "avg rank"]
+    tags = [PARAMETERS[name].short for name in swept]
+    header = ["method", "A* group", "reduced", *tags, *rows[0].measures, "avg rank"]
     body = [
         [
             row.configuration.name,
@@ -219,6 +224,8 @@ def _text(
             f"A* Groups over {plural(len(objectives), 'objective')}, all minimised; measures "
             "shown over all scenes"
             + (f"; best {SHOWN_ROWS} of {len(rows)} shown" if len(rows) > SHOWN_ROWS else "")
+            + "; "
+            + ", ".join(f"{tag} = {name}" for tag, name in zip(tags, swept, strict=True))
         ),
         table(header, body),
         "",

@@ -238,3 +238,47 @@ def test_two_worker_processes_give_the_same_database(
     assert dump(out) == dump(sweep["out"])
     assert "A* group" in text
     assert "sgbm_w5_u" in text
+
+
+def test_a_search_wider_than_the_images_is_refused_before_anything_is_written(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from refusal_support import assert_refused
+
+    space = sweep["root"] / "wide.yaml"
+    space.write_text(
+        "family: sgbm\nparameters: {correlation_window_size: [5, 7], disparity_range: 512}"
+    )
+    out = sweep["root"] / "wide"
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(sweep["scenes"][0]), "--out", str(out)
+    )
+    assert_refused(code, err, "ArtL: the images are 347 px wide", "sgbm_w5")
+    assert not out.exists()
+
+
+def test_printed_measures_equal_a_numpy_recomputation(sweep: dict) -> None:
+    """tune.csv's SZE and BMPRE on 'all' over both scenes: sums of the per-scene definitions."""
+    from reference import numpy_measures, valid_of
+
+    from dispeval_ros.io import load_scene
+
+    lines = (sweep["out"] / "tune.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = {r[0]: dict(zip(header, r, strict=True)) for r in (x.split(",") for x in lines[1:])}
+    chosen = [lines[1].split(",")[0], lines[-1].split(",")[0], "sgbm_w7_u10_mode2"]
+    totals = {name: {"sze": 0.0, "bmpre": 0.0} for name in chosen}
+    for scene in sweep["scenes"]:
+        loaded = load_scene(scene)  # the files as read; the measures are recomputed here
+        left = cv2.cvtColor(cv2.imread(str(scene / "im0.png")), cv2.COLOR_BGR2GRAY)
+        right = cv2.cvtColor(cv2.imread(str(scene / "im1.png")), cv2.COLOR_BGR2GRAY)
+        for name in chosen:
+            estimate = node_map(left, right, expected_configurations()[name])
+            criteria = {"all": valid_of(loaded.gt)}
+            values = numpy_measures(loaded.gt, estimate, criteria, "interpolate", loaded.camera)
+            for measure in totals[name]:
+                totals[name][measure] += values["all"][measure]
+    for name in chosen:
+        for measure, want in totals[name].items():
+            have = float(rows[name][f"{measure} (all)"])
+            assert have == pytest.approx(want, rel=1e-6), (name, measure)

@@ -24,7 +24,7 @@ import numpy as np
 
 from dispeval_ros.core import Evaluator, Reference
 from dispeval_ros.core.records import FrameScores, MatchCounts
-from dispeval_ros.errors import DispevalError, InputError
+from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
 from dispeval_ros.io.store import PreparedUnit, ResultsStore, prepare_unit
 from dispeval_ros.offline.bag_eval import bag_location, sequence_names
 from dispeval_ros.offline.executors import end_with_the_parent
@@ -98,6 +98,30 @@ def load_scene(folder: Path, evaluator: Evaluator) -> list[SceneFrame]:
             SceneFrame(stamp, truth.frame, truth.source, left, right, reference, sorted(files))
         )
     return frames
+
+
+def check_fits(
+    configurations: Sequence[Configuration],
+    scenes: Sequence[Path],
+    loaded: Mapping[int, list[SceneFrame]],
+) -> None:
+    """Refuse (one line) an SGBM configuration whose search does not fit a scene's images.
+
+    OpenCV's SGBM raises unless ``width − (min_disparity + disparity_range)`` exceeds half the
+    window; found here, before anything is written, rather than in the middle of the run.
+    """
+    for index, folder in enumerate(scenes):
+        for frame in loaded[index][:1]:  # the frames of a scene folder share their size
+            width = frame.left.shape[1]
+            for configuration in configurations:
+                method = configuration.method
+                reach = method.min_disparity + method.num_disparities
+                if method.kind == "sgbm" and width - reach <= method.block_size // 2:
+                    raise ConfigurationError(
+                        f"{folder}: the images are {width} px wide, too narrow for configuration "
+                        f"{configuration.name}: OpenCV's SGBM needs width − (min_disparity + "
+                        f"disparity_range) = {width - reach} > correlation_window_size / 2"
+                    )
 
 
 def sequence_info(folder: Path, frames: Sequence[SceneFrame]) -> dict[str, object]:
