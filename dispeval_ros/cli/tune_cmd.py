@@ -115,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.core import evaluate_models
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.provenance import provenance_record
+    from dispeval_ros.io import list_frames
     from dispeval_ros.io.provenance import files_sha256
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.records import write_run_files
@@ -126,6 +127,9 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     space = read_space(args.space)
     configurations = space.configurations(args.samples, args.seed)
+    listed = [list_frames(folder) for folder in args.scene]
+    for frames in listed:  # scored as eval --scene scores them
+        common.scene_defaults(args, frames[0].layout)
     evaluator = common.evaluator_from_args(args)
     wanted = args.objective_measures or default_objective_measures(evaluator.measures)
     unknown = [m for m in wanted if m not in evaluator.measures]
@@ -134,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
             f"({', '.join(evaluator.measures)})"
         )
-    loaded = {i: load_scene(folder, evaluator) for i, folder in enumerate(args.scene)}
+    loaded = {i: load_scene(f, evaluator, listed[i]) for i, f in enumerate(args.scene)}
     check_fits(configurations, args.scene, loaded)
     record = _record(args, space, configurations, evaluator)
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]

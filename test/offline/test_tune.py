@@ -253,7 +253,7 @@ def test_a_search_wider_than_the_images_is_refused_before_anything_is_written(
     code, _, err = tune(
         capsys, "--space", str(space), "--scene", str(sweep["scenes"][0]), "--out", str(out)
     )
-    assert_refused(code, err, "ArtL: the images are 347 px wide", "sgbm_w5")
+    assert_refused(code, err, "ArtL: images 347 px wide are too narrow", "sgbm_w5")
     assert not out.exists()
 
 
@@ -282,3 +282,43 @@ def test_printed_measures_equal_a_numpy_recomputation(sweep: dict) -> None:
         for measure, want in totals[name].items():
             have = float(rows[name][f"{measure} (all)"])
             assert have == pytest.approx(want, rel=1e-6), (name, measure)
+
+
+def test_a_lidar_scene_is_scored_as_eval_scores_it(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A scan as GT: eval's metric depth ranges and depth measures, the same rows."""
+    scene = shared_data / "kitti-lidar" / "stereo-rcnn-demo"
+    space = tmp_path / "bm.yaml"
+    space.write_text(
+        "family: bm\nparameters: {correlation_window_size: [9, 15], disparity_range: 128}"
+    )
+    out = tmp_path / "tune"
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(scene), "--out", str(out), "--quiet"
+    )
+    assert code == 0, err
+    images = [cv2.imread(str(scene / name)) for name in ("left.png", "right.png")]
+    left, right = (i if i.ndim == 2 else cv2.cvtColor(i, cv2.COLOR_BGR2GRAY) for i in images)
+    estimates = []
+    for window in (9, 15):  # the node's BM: its defaults for what the space leaves out
+        bm = cv2.StereoBM.create(128, window)
+        bm.setPreFilterSize(9)
+        bm.setPreFilterCap(31)
+        bm.setTextureThreshold(10)
+        bm.setUniquenessRatio(15)
+        bm.setSpeckleWindowSize(100)
+        bm.setSpeckleRange(4)
+        raw = bm.compute(left, right)
+        disparity = raw.astype(np.float32) / 16
+        disparity[raw < 0] = -1
+        path = tmp_path / f"bm_w{window}.npy"
+        np.save(path, disparity)
+        estimates += ["--est", f"bm_w{window}={path}"]
+    assert main(["eval", "--scene", str(scene), *estimates, "--out", str(tmp_path / "eval")]) == 0
+    capsys.readouterr()
+    rows = frame_rows(tmp_path / "eval", scene.name)
+    assert rows
+    assert frame_rows(out, scene.name) == rows
+    with ResultsStore.open(out) as store:
+        assert store.config()["depth_ranges"] == "0-10,10-30,30-inf"

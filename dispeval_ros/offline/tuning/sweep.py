@@ -25,6 +25,7 @@ import numpy as np
 from dispeval_ros.core import Evaluator, Reference
 from dispeval_ros.core.records import FrameScores, MatchCounts
 from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
+from dispeval_ros.io.scenes import Scene
 from dispeval_ros.io.store import PreparedUnit, ResultsStore, prepare_unit
 from dispeval_ros.offline.bag_eval import bag_location, sequence_names
 from dispeval_ros.offline.executors import end_with_the_parent
@@ -74,14 +75,19 @@ def evaluator_settings(evaluator: Evaluator) -> dict[str, Any]:
     return {name: getattr(evaluator, name) for name in EVALUATOR_FIELDS}
 
 
-def load_scene(folder: Path, evaluator: Evaluator) -> list[SceneFrame]:
-    """Every frame of a scene folder: images (8-bit grey) and reference; one line if unusable."""
+def load_scene(
+    folder: Path, evaluator: Evaluator, listed: Sequence[Scene] | None = None
+) -> list[SceneFrame]:
+    """Every frame of a scene folder: images (8-bit grey) and reference; one line if unusable.
+
+    ``listed``: the folder's frames as :func:`~dispeval_ros.io.list_frames` returned them.
+    """
     from dispeval_ros.io import list_frames
     from dispeval_ros.io.files import read_stereo_pair
     from dispeval_ros.io.scene_frames import frame_truth
 
     frames = []
-    for stamp, scene in enumerate(list_frames(folder)):
+    for stamp, scene in enumerate(list_frames(folder) if listed is None else listed):
         truth = frame_truth(folder, scene, "auto")
         if scene.left is None or scene.right is None:
             raise InputError(f"{folder}: frame {truth.frame} has no left and right images to match")
@@ -111,14 +117,13 @@ def check_fits(
     window; found here, before anything is written, rather than in the middle of the run.
     """
     for index, folder in enumerate(scenes):
-        for frame in loaded[index][:1]:  # the frames of a scene folder share their size
-            width = frame.left.shape[1]
+        for width in sorted({frame.left.shape[1] for frame in loaded[index]}):
             for configuration in configurations:
                 method = configuration.method
                 reach = method.min_disparity + method.num_disparities
                 if method.kind == "sgbm" and width - reach <= method.block_size // 2:
                     raise ConfigurationError(
-                        f"{folder}: the images are {width} px wide, too narrow for configuration "
+                        f"{folder}: images {width} px wide are too narrow for configuration "
                         f"{configuration.name}: OpenCV's SGBM needs width − (min_disparity + "
                         f"disparity_range) = {width - reach} > correlation_window_size / 2"
                     )
