@@ -57,6 +57,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="the seed of --samples (default 0)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on a Dask cluster: tcp://HOST:PORT of its scheduler (the workers "
+        "must see the scene folders), or local:N for a local cluster of N worker processes",
+    )
+    parser.add_argument(
         "--chunk",
         type=int,
         default=DEFAULT_CHUNK,
@@ -79,8 +85,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    if args.jobs < 1:
-        raise ConfigurationError(f"--jobs must be at least 1, got {args.jobs}")
+    from dispeval_ros.offline.executors import check_engine
+
+    check_engine(args.jobs, args.scheduler)
     if args.chunk < 1:
         raise ConfigurationError(f"--chunk must be at least 1, got {args.chunk}")
     if not args.node_name or any(c in args.node_name for c in " \t\n:"):
@@ -152,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
             evaluator,
             chunk=args.chunk,
             jobs=args.jobs,
+            scheduler=args.scheduler,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
         )
         provenance = provenance_record(record, {"files": files_sha256(inputs)})

@@ -255,6 +255,9 @@ def test_a_search_wider_than_the_images_is_refused_before_anything_is_written(
     )
     assert_refused(code, err, "ArtL: images 347 px wide are too narrow", "sgbm_w5")
     assert not out.exists()
+    code, _, err = tune(capsys, *sweep["argv"], "--out", str(out), "--objective-measures", "nope")
+    assert_refused(code, err, "--objective-measures nope: not among the measures scored")
+    assert not out.exists()
 
 
 def test_printed_measures_equal_a_numpy_recomputation(sweep: dict) -> None:
@@ -322,3 +325,58 @@ def test_a_lidar_scene_is_scored_as_eval_scores_it(
     assert frame_rows(out, scene.name) == rows
     with ResultsStore.open(out) as store:
         assert store.config()["depth_ranges"] == "0-10,10-30,30-inf"
+
+
+def test_a_local_dask_cluster_gives_the_same_database(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("distributed")
+    out = sweep["root"] / "dask"
+    code, _, err = tune(capsys, *sweep["argv"], "--out", str(out), "--scheduler", "local:2")
+    assert code == 0, err
+    assert dump(out) == dump(sweep["out"])
+
+
+def _units_stored(folder: Path) -> int:
+    try:
+        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
+    except sqlite3.Error:
+        return 0
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.Error:
+        return 0
+    finally:
+        db.close()
+
+
+def test_resume_after_a_kill_gives_the_same_database(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SIGKILL mid-sweep (one configuration a unit): the resumed database is the whole run's."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    argv = [*sweep["argv"], "--chunk", "1"]
+    whole, killed = sweep["root"] / "chunk1", sweep["root"] / "killed"
+    code, _, err = tune(capsys, *argv, "--out", str(whole))
+    assert code == 0, err
+    command = [sys.executable, "-m", "dispeval_ros", "tune", *argv, "--out", str(killed)]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while _units_stored(killed) < 3 and process.poll() is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        process.wait()
+    stored = _units_stored(killed)
+    assert 3 <= stored < 36, stored  # killed mid-sweep
+    code, text, err = tune(capsys, *argv, "--out", str(killed), "--resume")
+    assert code == 0, err
+    assert f"{stored} done before" in text
+    assert dump(killed) == dump(whole)

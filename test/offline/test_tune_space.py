@@ -184,9 +184,10 @@ def _good_space(folder: Path) -> Path:
     ("extra", "needle"),
     [
         (["--jobs", "0"], "--jobs must be at least 1"),
+        (["--jobs", "2", "--scheduler", "local:2"], "give --jobs or --scheduler, not both"),
+        (["--scheduler", "ws://x:1"], "--scheduler ws://x:1"),
         (["--chunk", "0"], "--chunk must be at least 1"),
         (["--samples", "1"], "--samples must be at least 2"),
-        (["--objective-measures", "nope"], "--objective-measures nope"),
         (["--node-name", "a b"], "--node-name must be a ROS node name"),
     ],
 )

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import multiprocessing
 import threading
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -184,6 +184,9 @@ class _Worker:
 
 
 _process_worker: dict[str, _Worker] = {}
+"""A pool process's worker (set once when it starts)."""
+_dask_workers: dict[str, _Worker] = {}
+"""A Dask worker process's workers, one per sweep setup (scenes loaded once each)."""
 
 
 def _start_worker(setup: Setup) -> None:
@@ -195,10 +198,50 @@ def _run_in_worker(unit: TuneUnit) -> PreparedUnit:
     return _process_worker["worker"].run(unit)
 
 
-def _outcomes(
-    setup: Setup, units: Sequence[TuneUnit], jobs: int, loaded: Mapping[int, list[SceneFrame]]
+def _run_on_dask(setup: Setup, unit: TuneUnit) -> PreparedUnit:
+    key = repr(setup)
+    worker = _dask_workers.get(key)
+    if worker is None:
+        worker = _dask_workers[key] = _Worker(setup)
+    return worker.run(unit)
+
+
+def _in_order(
+    units: Sequence[TuneUnit],
+    submit: Callable[[TuneUnit], Any],
+    wait_any: Callable[[list[Any]], Iterable[Any]],
+    window: int,
 ) -> Iterator[PreparedUnit]:
-    """Each unit's rows, in plan order, computed here (``jobs`` 1) or on ``jobs`` processes."""
+    """Each unit's rows in plan order, at most ``window`` units ahead of the oldest one due.
+
+    ``submit`` starts a unit and returns its future; ``wait_any`` returns the futures done (at
+    least one). A unit's error is the run's (raised here, the units before it written).
+    """
+    running: dict[Any, int] = {}
+    arrived: dict[int, PreparedUnit] = {}
+    submitted = written = 0
+    while written < len(units):
+        while submitted < len(units) and submitted < written + window:
+            running[submit(units[submitted])] = submitted
+            submitted += 1
+        for future in wait_any(list(running)):
+            arrived[running.pop(future)] = future.result()
+        while written in arrived:
+            yield arrived.pop(written)
+            written += 1
+
+
+def _outcomes(
+    setup: Setup,
+    units: Sequence[TuneUnit],
+    jobs: int,
+    loaded: Mapping[int, list[SceneFrame]],
+    scheduler: str | None = None,
+) -> Iterator[PreparedUnit]:
+    """Each unit's rows, in plan order: here (``jobs`` 1), on processes or on a Dask cluster."""
+    if scheduler is not None:
+        yield from _on_dask(setup, units, scheduler)
+        return
     if jobs == 1:
         worker = _Worker(setup, loaded)
         for unit in units:
@@ -212,22 +255,38 @@ def _outcomes(
         initargs=(setup,),
     )
     try:
-        window = jobs * WINDOW_PER_WORKER
-        running: dict[Future[PreparedUnit], int] = {}
-        arrived: dict[int, PreparedUnit] = {}
-        submitted = written = 0
-        while written < len(units):
-            while submitted < len(units) and submitted < written + window:
-                running[pool.submit(_run_in_worker, units[submitted])] = submitted
-                submitted += 1
-            done, _ = wait(list(running), return_when=FIRST_COMPLETED)
-            for future in done:
-                arrived[running.pop(future)] = future.result()  # a unit's error: the run's
-            while written in arrived:
-                yield arrived.pop(written)
-                written += 1
+        yield from _in_order(
+            units,
+            lambda unit: pool.submit(_run_in_worker, unit),
+            lambda futures: wait(futures, return_when=FIRST_COMPLETED)[0],
+            jobs * WINDOW_PER_WORKER,
+        )
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _on_dask(setup: Setup, units: Sequence[TuneUnit], scheduler: str) -> Iterator[PreparedUnit]:
+    """The units as Dask tasks (not pure: a retry runs again); a lost scheduler is one line."""
+    from dispeval_ros.offline.dask_executor import connect, disconnect
+
+    client, cluster = connect(scheduler)
+    import distributed
+
+    workers = max(1, len(client.scheduler_info().get("workers", {})))
+    try:
+        yield from _in_order(
+            units,
+            lambda unit: client.submit(_run_on_dask, setup, unit, pure=False),
+            lambda futures: distributed.wait(futures, return_when="FIRST_COMPLETED").done,
+            workers * WINDOW_PER_WORKER,
+        )
+    except (OSError, TimeoutError, CancelledError) as error:
+        raise InputError(
+            f"lost the Dask scheduler at {scheduler} ({type(error).__name__}); the units "
+            "written so far are kept, continue with --resume"
+        ) from None
+    finally:
+        disconnect(client, cluster)
 
 
 @dataclass
@@ -248,12 +307,15 @@ def run_sweep(
     *,
     chunk: int = DEFAULT_CHUNK,
     jobs: int = 1,
+    scheduler: str | None = None,
     progress: Callable[[int, int, SweepReport], None] | None = None,
 ) -> SweepReport:
     """Score every configuration on every frame of ``scenes`` into ``store`` (done units skipped).
 
     ``loaded`` holds the scenes as :func:`load_scene` read them (the driver checked them all
-    before creating the store); the in-process run reuses them, worker processes load their own.
+    before creating the store); the in-process run reuses them, worker processes (``jobs``
+    > 1, or a Dask cluster: ``scheduler`` as ``dispeval bag --scheduler`` takes it) load their
+    own.
     """
     sequences = sequence_names(list(scenes))
     for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
@@ -262,8 +324,10 @@ def run_sweep(
     done = {sequence: store.done_units(sequence) for sequence in sequences}
     todo = [unit for unit in units if unit.name not in done[unit.sequence]]
     report = SweepReport(units_skipped=len(units) - len(todo))
-    setup = Setup(tuple(scenes), evaluator_settings(evaluator))
-    for unit, prepared in zip(todo, _outcomes(setup, todo, jobs, loaded), strict=False):
+    # absolute: a Dask worker resolves relative paths against its own folder
+    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
+    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
+    for unit, prepared in zip(todo, outcomes, strict=False):
         store.add_prepared(prepared)
         report.units_done += 1
         report.frames += len(unit.configurations) * len(loaded[unit.scene])
