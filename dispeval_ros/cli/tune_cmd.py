@@ -171,8 +171,8 @@ def run(args: argparse.Namespace) -> int:
         pooled = store.sequence_scores()
     models = evaluate_models(methods, matrix)
     by_name = {c.name: c for c in configurations}
-    criterion = evaluator.criteria[0] if evaluator.criteria else "all"
-    shown = [(criterion, m) for m in wanted]
+    first = next(iter(pooled.values()))
+    shown = [(first.criteria[0], m) for m in wanted]  # the first criterion: "all" by default
     rows = tune_rows([by_name[m] for m in methods], models, pooled, shown)
     table_file = write_table(args.out, rows)
     params = write_params_files(args.out, space.family, rows, args.node_name)

@@ -13,7 +13,7 @@ the units in flight and a resumed one skips the units that are done.
 from __future__ import annotations
 
 import multiprocessing
-import threading
+import os
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -189,8 +189,11 @@ _dask_workers: dict[str, _Worker] = {}
 """A Dask worker process's workers, one per sweep setup (scenes loaded once each)."""
 
 
-def _start_worker(setup: Setup) -> None:
+def _start_worker(setup: Setup, jobs: int) -> None:
+    import cv2
+
     end_with_the_parent()
+    cv2.setNumThreads(max(1, (os.cpu_count() or 1) // jobs))  # the cores shared, not each taken
     _process_worker["worker"] = _Worker(setup)
 
 
@@ -247,12 +250,13 @@ def _outcomes(
         for unit in units:
             yield worker.run(unit)
         return
-    method = "spawn" if threading.active_count() > 1 else "fork"  # see PoolExecutor
+    # spawn, never fork: OpenCV's own thread pool (invisible to threading) has run here, and a
+    # forked child that touches it can hang for good
     pool = ProcessPoolExecutor(
         jobs,
-        mp_context=multiprocessing.get_context(method),
+        mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_worker,
-        initargs=(setup,),
+        initargs=(setup, jobs),
     )
     try:
         yield from _in_order(
