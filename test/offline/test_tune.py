@@ -380,3 +380,27 @@ def test_resume_after_a_kill_gives_the_same_database(
     assert code == 0, err
     assert f"{stored} done before" in text
     assert dump(killed) == dump(whole)
+
+
+def test_the_readme_example_prints_what_the_readme_shows(
+    shared_data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The README's command (its paths from the project root) prints its table and YAML."""
+    import io
+    from contextlib import redirect_stdout
+
+    from test_readme import CLONE, readme_block
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COLUMNS", "100")
+    scenes = shared_data / "middeval3-training-Q"
+    argv = ["--space", str(CLONE / "config" / "tune_sgbm.yaml"), "--out", "tune-sgbm", "--quiet"]
+    buffer = io.StringIO()
+    with redirect_stdout(buffer):
+        assert (
+            main(["tune", *argv, "--scene", str(scenes / "ArtL"), "--scene", str(scenes / "Teddy")])
+            == 0
+        )
+    assert buffer.getvalue() == readme_block("tune-output", "text")
+    written = (tmp_path / "tune-sgbm" / "params" / "sgbm_w5_u10_mode0.yaml").read_text()
+    assert written == readme_block("tune-params", "yaml")

@@ -232,3 +232,25 @@ def test_the_bundled_example_space_is_the_3_by_3_by_2_sgbm_grid() -> None:
     configurations = example.configurations()
     assert len(configurations) == 18
     assert configurations[0].name == "sgbm_w5_u5_mode0"
+
+
+def test_a_unit_lost_on_its_worker_is_one_line_saying_how_to_continue() -> None:
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    from dispeval_ros.errors import InputError
+    from dispeval_ros.offline.tuning.sweep import TuneUnit, _result
+
+    lost: Future[object] = Future()
+    lost.set_exception(BrokenProcessPool("A process in the process pool was\nterminated"))
+    unit = TuneUnit(0, "ArtL", "000001", ())
+    with pytest.raises(InputError) as raised:
+        _result(lost, unit)
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message.startswith("unit 000001 of ArtL failed on its worker (BrokenProcessPool: A ")
+    assert message.endswith("continue with --resume")
+    refused: Future[object] = Future()
+    refused.set_exception(InputError("scene: no images"))
+    with pytest.raises(InputError, match=r"^scene: no images$"):
+        _result(refused, unit)

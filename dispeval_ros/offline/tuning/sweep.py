@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -228,10 +228,25 @@ def _in_order(
             running[submit(units[submitted])] = submitted
             submitted += 1
         for future in wait_any(list(running)):
-            arrived[running.pop(future)] = future.result()
+            index = running.pop(future)
+            arrived[index] = _result(future, units[index])
         while written in arrived:
             yield arrived.pop(written)
             written += 1
+
+
+def _result(future: Any, unit: TuneUnit) -> PreparedUnit:
+    """A unit's rows; what went wrong on its worker as one line (a user's error as it is)."""
+    try:
+        return cast(PreparedUnit, future.result())
+    except DispevalError:
+        raise
+    except Exception as error:  # a worker that died, ran out of memory, was lost...
+        what = " ".join(str(error).split()) or "no message"
+        raise InputError(
+            f"unit {unit.name} of {unit.sequence} failed on its worker ({type(error).__name__}: "
+            f"{what}); the units written so far are kept, continue with --resume"
+        ) from None
 
 
 def _outcomes(
