@@ -404,3 +404,21 @@ def test_the_readme_example_prints_what_the_readme_shows(
     assert buffer.getvalue() == readme_block("tune-output", "text")
     written = (tmp_path / "tune-sgbm" / "params" / "sgbm_w5_u10_mode0.yaml").read_text()
     assert written == readme_block("tune-params", "yaml")
+
+
+def test_a_seeded_sample_of_the_grid_is_stored_with_its_seed(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = sweep["root"] / "sampled"
+    argv = ["--space", sweep["argv"][1], "--scene", str(sweep["scenes"][0]), "--quiet"]
+    code, text, err = tune(capsys, *argv, "--out", str(out), "--samples", "5", "--seed", "3")
+    assert code == 0, err
+    assert "5 configurations of sgbm on 1 scene" in text
+    with ResultsStore.open(out) as store:
+        config = store.config()
+        assert (config["samples"], config["seed"]) == (5, 3)
+        assert set(store.methods()) == set(config["configurations"])
+        assert set(store.methods()) < set(expected_configurations())
+        assert config["configurations"] == {
+            m: expected_configurations()[m] for m in store.methods()
+        }
