@@ -24,6 +24,7 @@ def requirements() -> list[str]:
         "mcap>=1.2",
         "mcap-ros2-support>=0.5",
         "blake3>=0.3",  # the stream digests (io/provenance.py; sha256, recorded as such, without)
+        "pyyaml>=5.1",  # dispeval tune: space files, ROS 2 parameters files
     ]
     if _needs_opencv():
         required.append("opencv-python-headless>=4.5")

@@ -22,6 +22,7 @@ from dispeval_ros.cli import (
     models_cmd,
     play_cmd,
     report_cmd,  # the interactive HTML report
+    tune_cmd,
 )
 from dispeval_ros.errors import ConfigurationError, DispevalError, ResultsConflictError
 from dispeval_ros.version import __version__
@@ -38,6 +39,7 @@ COMMANDS = (
     live_cmd,
     play_cmd,
     report_cmd,
+    tune_cmd,
 )
 
 

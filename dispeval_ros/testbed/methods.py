@@ -18,12 +18,13 @@ import numpy as np
 
 from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchError
 
-_SGBM_MODES = {
+SGBM_MODES = {
     "sgbm": cv2.StereoSGBM_MODE_SGBM,
     "hh": cv2.StereoSGBM_MODE_HH,
     "sgbm_3way": cv2.StereoSGBM_MODE_SGBM_3WAY,
     "hh4": cv2.StereoSGBM_MODE_HH4,
 }
+"""SGBM mode name → OpenCV's ``StereoSGBM::MODE_*`` value (stereo_image_proc's ``sgbm_mode``)."""
 
 # OpenCV matchers keep per-call buffers and are not safe to share between threads: one
 # matcher per (method, thread), created on first use.
@@ -71,9 +72,9 @@ class StereoMethod:
             )
         if self.kind == "bm" and self.block_size > 255:
             raise ConfigurationError(f"{where}: block_size must be <= 255 for BM")
-        if self.mode not in _SGBM_MODES:
+        if self.mode not in SGBM_MODES:
             raise ConfigurationError(
-                f"{where}: mode must be one of {sorted(_SGBM_MODES)}, got {self.mode!r}"
+                f"{where}: mode must be one of {sorted(SGBM_MODES)}, got {self.mode!r}"
             )
         if self.kind == "sgbm" and self.penalties[1] <= self.penalties[0]:
             raise ConfigurationError(f"{where}: SGBM needs p2 > p1, got {self.penalties}")
@@ -120,7 +121,7 @@ class StereoMethod:
             uniquenessRatio=self.uniqueness_ratio,
             speckleWindowSize=self.speckle_window_size,
             speckleRange=self.speckle_range,
-            mode=_SGBM_MODES[self.mode],
+            mode=SGBM_MODES[self.mode],
         )
 
     def matcher(self) -> Any:

@@ -25,6 +25,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from store_support import dump
 
 from dispeval_ros import Camera, Evaluator, Scores
 from dispeval_ros.cli.main import cli_advice
@@ -106,28 +107,6 @@ def write_plan(store: ResultsStore, units=PLAN) -> None:
     for sequence, unit, frames, problems, counts in units:
         store.set_sequence(sequence, f"/bags/{sequence}.mcap", {"camera": "/cam", "start": 0})
         store.add_unit(sequence, unit, frames, problems, counts)
-
-
-def dump(directory: Path) -> dict[str, object]:
-    """Everything in the database: schema, header marks and all rows, ordered."""
-    db = sqlite3.connect(directory / RESULTS_FILE)
-    try:
-        content: dict[str, object] = {
-            "schema": db.execute(
-                "SELECT type, name, sql FROM sqlite_master ORDER BY name"
-            ).fetchall(),
-            "application_id": db.execute("PRAGMA application_id").fetchone(),
-            "user_version": db.execute("PRAGMA user_version").fetchone(),
-        }
-        tables = [row[0] for row in db.execute("SELECT name FROM sqlite_master WHERE type='table'")]
-        for table in tables:
-            columns = [f'"{row[1]}"' for row in db.execute(f'PRAGMA table_info("{table}")')]
-            content[table] = db.execute(
-                f'SELECT * FROM "{table}" ORDER BY {", ".join(columns)}'
-            ).fetchall()
-        return content
-    finally:
-        db.close()
 
 
 def same(a: float, b: float) -> bool:

@@ -1,0 +1,246 @@
+"""``dispeval tune``: sweep OpenCV stereo parameters on scenes, judge them by A* Groups."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from dispeval_ros.cli import common
+from dispeval_ros.cli.output import plural, print_json, table, wrapped
+from dispeval_ros.cli.progress import Progress
+from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.offline.tuning.parameters import DEFAULT_NODE_NAME
+from dispeval_ros.offline.tuning.sweep import DEFAULT_CHUNK
+
+HELP = "sweep the parameters of an OpenCV stereo matcher on scenes and rank them by A* Groups"
+SHOWN_ROWS = 20
+"""Configurations printed (best first); tune.csv holds them all."""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``tune``."""
+    parser = subparsers.add_parser(
+        "tune",
+        help=HELP,
+        description=HELP + ". Each configuration of the --space file (stereo_image_proc's "
+        "parameter names) is a method: its maps of every scene frame are scored as 'dispeval "
+        "eval' scores them, into DIR/results.sqlite unit by unit (resumable); then A* Groups "
+        "and the front reduction over the objectives, a table with the parameter values "
+        "(DIR/tune.csv) and, for each group-1 configuration, DIR/params/NAME.yaml for the "
+        "disparity node's --params-file.",
+    )
+    parser.add_argument(
+        "--space",
+        type=Path,
+        required=True,
+        metavar="FILE.yaml",
+        help="the parameter space: family (bm or sgbm) and per parameter a value, a list, "
+        "{min, max, step} or {choices: [...]}",
+    )
+    parser.add_argument(
+        "--scene",
+        type=Path,
+        action="append",
+        required=True,
+        metavar="DIR",
+        help="a dataset scene folder (images, GT, masks, camera); repeat for several: each is "
+        "one sequence",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="results folder")
+    parser.add_argument(
+        "--samples",
+        type=int,
+        metavar="N",
+        help="score N distinct configurations drawn at random from the space (default: all)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="the seed of --samples (default 0)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on a Dask cluster: tcp://HOST:PORT of its scheduler (the workers "
+        "must see the scene folders), or local:N for a local cluster of N worker processes",
+    )
+    parser.add_argument(
+        "--chunk",
+        type=int,
+        default=DEFAULT_CHUNK,
+        metavar="N",
+        help=f"configurations per unit of work (default {DEFAULT_CHUNK})",
+    )
+    parser.add_argument(
+        "--resume", action="store_true", help="continue an interrupted run in --out"
+    )
+    parser.add_argument(
+        "--node-name",
+        default=DEFAULT_NODE_NAME,
+        help=f"the node the parameters files are for (default {DEFAULT_NODE_NAME})",
+    )
+    common.add_evaluation_options(parser)
+    common.add_objective_options(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress line")
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.set_defaults(run=run)
+
+
+def _check_numbers(args: argparse.Namespace) -> None:
+    from dispeval_ros.offline.executors import check_engine
+
+    check_engine(args.jobs, args.scheduler)
+    if args.chunk < 1:
+        raise ConfigurationError(f"--chunk must be at least 1, got {args.chunk}")
+    if not args.node_name or any(c in args.node_name for c in " \t\n:"):
+        raise ConfigurationError(f"--node-name must be a ROS node name, got {args.node_name!r}")
+
+
+def _record(
+    args: argparse.Namespace, space: Any, configurations: list[Any], evaluator: Any
+) -> dict[str, object]:
+    """The run record: what defines the numbers (a resume must give the same)."""
+    from dispeval_ros.offline.bag_eval import bag_location
+
+    return {
+        "command": "tune",
+        "space": space.record(),
+        "samples": args.samples,
+        "seed": args.seed if args.samples is not None else None,
+        "chunk": args.chunk,
+        "scenes": [bag_location(folder) for folder in args.scene],
+        "criteria": list(evaluator.criteria),
+        "measures": list(evaluator.measures),
+        "missing": evaluator.missing,
+        "delta": evaluator.delta,
+        "mu": evaluator.mu,
+        "depth_ranges": args.depth_ranges,
+        "configurations": {c.name: c.values for c in configurations},
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check everything, sweep, rank, write the table and the parameters files, print."""
+    from dispeval_ros.core import evaluate_models
+    from dispeval_ros.core.objectives import default_objective_measures
+    from dispeval_ros.core.provenance import provenance_record
+    from dispeval_ros.io import list_frames
+    from dispeval_ros.io.provenance import files_sha256
+    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.offline.records import write_run_files
+    from dispeval_ros.offline.tuning.outputs import tune_rows, write_params_files, write_table
+    from dispeval_ros.offline.tuning.space import read_space
+    from dispeval_ros.offline.tuning.sweep import check_fits, load_scene, run_sweep
+    from dispeval_ros.summary import objective_table
+
+    _check_numbers(args)
+    space = read_space(args.space)
+    configurations = space.configurations(args.samples, args.seed)
+    listed = [list_frames(folder) for folder in args.scene]
+    for frames in listed:  # scored as eval --scene scores them
+        common.scene_defaults(args, frames[0].layout)
+    evaluator = common.evaluator_from_args(args)
+    wanted = args.objective_measures or default_objective_measures(evaluator.measures)
+    unknown = [m for m in wanted if m not in evaluator.measures]
+    if unknown:
+        raise ConfigurationError(
+            f"--objective-measures {' '.join(unknown)}: not among the measures scored "
+            f"({', '.join(evaluator.measures)})"
+        )
+    loaded = {i: load_scene(f, evaluator, listed[i]) for i, f in enumerate(args.scene)}
+    check_fits(configurations, args.scene, loaded)
+    record = _record(args, space, configurations, evaluator)
+    inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
+    progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
+    with ResultsStore.create(args.out, record, resume=args.resume) as store:
+        report = run_sweep(
+            store,
+            args.scene,
+            loaded,
+            configurations,
+            evaluator,
+            chunk=args.chunk,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
+            progress=lambda done, total, r: progress.update(done, total, r.frames),
+        )
+        provenance = provenance_record(record, {"files": files_sha256(inputs)})
+        store.set_provenance(provenance)
+        write_run_files(store, args.out, provenance, args.objective_measures, args.objectives)
+        methods, objectives, matrix = objective_table(
+            store, args.objective_measures, args.objectives
+        )
+        pooled = store.sequence_scores()
+    models = evaluate_models(methods, matrix)
+    by_name = {c.name: c for c in configurations}
+    first = next(iter(pooled.values()))
+    shown = [(first.criteria[0], m) for m in wanted]  # the first criterion: "all" by default
+    rows = tune_rows([by_name[m] for m in methods], models, pooled, shown)
+    table_file = write_table(args.out, rows)
+    params = write_params_files(args.out, space.family, rows, args.node_name)
+    if args.json:
+        print_json(
+            {
+                "results": str(args.out),
+                "configurations": {c.name: c.values for c in configurations},
+                "objectives": objectives,
+                "models": models.to_dict(),
+                "params_files": [str(p) for p in params],
+                "units": {"done": report.units_done, "skipped": report.units_skipped},
+            }
+        )
+        return 0
+    print(_text(args, space, rows, objectives, models, report))
+    print(f"\ntable: {table_file}")
+    folder = params[0].parent if params else args.out
+    print(
+        wrapped(
+            f"parameters files for node {args.node_name}, one per A* group 1 configuration: "
+            f"{folder}/NAME.yaml ({plural(len(params), 'file')})"
+        )
+    )
+    return 0
+
+
+def _text(
+    args: argparse.Namespace,
+    space: Any,
+    rows: list[Any],
+    objectives: list[str],
+    models: Any,
+    report: Any,
+) -> str:
+    """The sweep's summary line, the best configurations with their values, the reading."""
+    from dispeval_ros.offline.tuning.parameters import PARAMETERS
+
+    swept = [name for name, values in space.axes.items() if len(values) > 1]
+    tags = [PARAMETERS[name].short for name in swept]
+    header = ["method", "A* group", "reduced", *tags, *rows[0].measures, "avg rank"]
+    body = [
+        [
+            row.configuration.name,
+            row.group,
+            "yes" if row.reduced else "",
+            *(row.configuration.values[name] for name in swept),
+            *row.measures.values(),
+            row.rank,
+        ]
+        for row in rows[:SHOWN_ROWS]
+    ]
+    scenes = plural(len(args.scene), "scene")
+    lines = [
+        wrapped(
+            f"tune: {plural(len(rows), 'configuration')} of {space.family} on {scenes}; this run: "
+            f"{plural(report.units_done, 'unit')} ({report.frames} method-frames)"
+            + (f", {report.units_skipped} done before" if report.units_skipped else "")
+        ),
+        wrapped(
+            f"A* Groups over {plural(len(objectives), 'objective')}, all minimised; measures "
+            "shown over all scenes"
+            + (f"; best {SHOWN_ROWS} of {len(rows)} shown" if len(rows) > SHOWN_ROWS else "")
+            + "; "
+            + ", ".join(f"{tag} = {name}" for tag, name in zip(tags, swept, strict=True))
+        ),
+        table(header, body),
+        "",
+        wrapped(models.interpretation),
+    ]
+    return "\n".join(lines)
