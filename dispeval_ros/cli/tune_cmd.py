@@ -176,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
     rows = tune_rows([by_name[m] for m in methods], models, pooled, shown)
     table_file = write_table(args.out, rows)
     params = write_params_files(args.out, space.family, rows, args.node_name)
+    figures, no_figures = _figures(args.out, rows)
     if args.json:
         print_json(
             {
@@ -184,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
                 "objectives": objectives,
                 "models": models.to_dict(),
                 "params_files": [str(p) for p in params],
+                "figures": [str(p) for p in figures],
                 "units": {"done": report.units_done, "skipped": report.units_skipped},
             }
         )
@@ -197,7 +199,31 @@ def run(args: argparse.Namespace) -> int:
             f"{folder}/NAME.yaml ({plural(len(params), 'file')})"
         )
     )
+    if figures:
+        print(
+            wrapped(
+                f"figures: {figures[0].parent}/ (the sweep in parallel coordinates, and each "
+                "measure's sensitivity to each swept parameter)"
+            )
+        )
+    else:
+        print(f"figures: not drawn ({no_figures})")
     return 0
+
+
+def _figures(folder: Path, rows: list[Any]) -> tuple[list[Path], str]:
+    """The sweep's figures in ``folder/figures`` (none, and why, without matplotlib)."""
+    from dispeval_ros.offline.tuning.outputs import FIGURES_FOLDER
+    from dispeval_ros.report.sweep import SweepPoint, write_sweep_figures
+
+    points = [
+        SweepPoint(r.configuration.name, r.configuration.values, r.measures, r.group)
+        for r in rows
+    ]
+    try:
+        return write_sweep_figures(points, folder / FIGURES_FOLDER), ""
+    except ConfigurationError as error:  # matplotlib is an extra
+        return [], str(error)
 
 
 def _text(

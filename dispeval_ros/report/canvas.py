@@ -8,8 +8,27 @@ from __future__ import annotations
 
 from typing import Any
 
+from dispeval_ros.errors import ConfigurationError
+
 LINE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 """One colour per method in line plots (the page's ``LINE_COLOURS`` in open.js)."""
+
+
+def require_matplotlib() -> Any:
+    """The ``matplotlib`` module, or one line saying how to install it (the ``report`` extra)."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise ConfigurationError(
+            "PNG figures need matplotlib, which a plain install leaves out: "
+            'pip install "dispeval_ros[report]"'
+        ) from None
+    return matplotlib
+
+
+def figure_context() -> Any:
+    """Draw names as they are (never parsed as mathtext or TeX)."""
+    return require_matplotlib().rc_context({"text.parse_math": False, "text.usetex": False})
 
 
 def new_figure(width: float, height: float) -> Any:

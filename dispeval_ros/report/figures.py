@@ -21,9 +21,15 @@ import numpy as np
 
 from dispeval_ros.core.measures import measure_unit
 from dispeval_ros.core.models import ModelResult
-from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.report.canvas import measure_label, new_figure, plain_numbers
+from dispeval_ros.report.canvas import (
+    figure_context,
+    measure_label,
+    new_figure,
+    plain_numbers,
+    require_matplotlib,
+)
 from dispeval_ros.report.data import (
     Selection,
     _grid,
@@ -289,14 +295,7 @@ def write_figures(
     data's block, made here when not given), and where pairs are recorded
     :data:`~dispeval_ros.report.temporal.TEMPORAL_FIGURE` (``temporal``: likewise).
     """
-    try:
-        import matplotlib
-    except ImportError:
-        raise ConfigurationError(
-            "PNG figures need matplotlib, which a plain install leaves out: "
-            'pip install "dispeval_ros[report]"'
-        ) from None
-
+    require_matplotlib()
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -343,7 +342,7 @@ def write_figures(
     relative = any(info["relative"][all_methods.index(m)] for m in methods)
     unit = measure_unit(measure, relative)
     paths = [directory / name for name in FIGURES]
-    with matplotlib.rc_context({"text.parse_math": False, "text.usetex": False}):
+    with figure_context():
         group_table_figure(models, names, paths[0], reference_text(store.config()))
         curves_figure(
             frame_values,

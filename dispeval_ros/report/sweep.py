@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.report.canvas import LINE_COLOURS, new_figure, plain_numbers
+from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.report.canvas import LINE_COLOURS, figure_context, new_figure, plain_numbers
 
 SENSITIVITY_PREFIX = "sensitivity_"
 """``sensitivity_<parameter>.png``: one figure per swept parameter."""
@@ -147,12 +147,16 @@ def parallel_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
 
 def write_sweep_figures(points: Sequence[SweepPoint], folder: Path) -> list[Path]:
     """The parallel coordinates and one sensitivity figure per swept parameter, in ``folder``."""
-    folder.mkdir(parents=True, exist_ok=True)
-    written = [folder / PARALLEL_FIGURE]
-    parallel_figure(points, written[0])
-    rows = sensitivities(points)
-    for parameter in swept_parameters(points):
-        path = folder / f"{SENSITIVITY_PREFIX}{parameter}.png"
-        sensitivity_figure(parameter, [r for r in rows if r.parameter == parameter], path)
-        written.append(path)
+    with figure_context():
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise InputError(f"{folder}: cannot create the figures folder ({error})") from None
+        written = [folder / PARALLEL_FIGURE]
+        parallel_figure(points, written[0])
+        rows = sensitivities(points)
+        for parameter in swept_parameters(points):
+            path = folder / f"{SENSITIVITY_PREFIX}{parameter}.png"
+            sensitivity_figure(parameter, [r for r in rows if r.parameter == parameter], path)
+            written.append(path)
     return written

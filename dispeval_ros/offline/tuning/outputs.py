@@ -2,7 +2,9 @@
 
 ``tune.csv`` holds one row per configuration (A* group, reduced or not, every node parameter,
 the shown measures); ``params/NAME.yaml`` is the ROS 2 parameters file of each group-1
-configuration for stereo_image_proc's disparity node, ready for ``--params-file``.
+configuration for stereo_image_proc's disparity node, ready for ``--params-file``;
+``figures/`` the sweep in parallel coordinates and each measure's sensitivity to each
+parameter.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from dispeval_ros.offline.tuning.space import Configuration
 
 TABLE_CSV = "tune.csv"
 PARAMS_FOLDER = "params"
+FIGURES_FOLDER = "figures"
+"""The sweep's figures (:mod:`dispeval_ros.report.sweep`), where matplotlib is installed."""
 
 
 @dataclass(frozen=True)
