@@ -19,12 +19,13 @@ from __future__ import annotations
 import argparse
 import logging
 import multiprocessing
-import pickle
 import shutil
 import tempfile
 import time
 from multiprocessing.connection import Connection
 from pathlib import Path
+
+from scaling import print_scaling, round_trip_cost  # this folder is on sys.path as a script
 
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.bag_eval import evaluate_bags, sequence_names
@@ -40,11 +41,6 @@ from dispeval_ros.testbed import default_methods
 
 METHODS = ("bm_fast", "sgbm")
 SLICE_NS = 1_000_000_000
-
-
-def echo(payload: bytes) -> int:
-    """A task that only moves a unit's payload (the engine's cost without the work)."""
-    return len(payload)
 
 
 def timed_run(bags: list[Path], config: CoreConfig, out: Path, **engine: object) -> float:
@@ -139,7 +135,6 @@ def main() -> None:
     outcomes = [run_unit(config, unit) for unit in all_units]
     unit_cost = (time.perf_counter() - started) / len(all_units)
     close_bags()
-    payloads = [pickle.dumps(outcome) for outcome in outcomes]
     out = root / "driver"
     shutil.rmtree(out, ignore_errors=True)
     with ResultsStore.create(out, {}) as store:
@@ -148,26 +143,16 @@ def main() -> None:
             store.add_prepared(outcome.rows)  # type: ignore[union-attr]
         write_cost = (time.perf_counter() - started) / len(outcomes)
     executor = DaskExecutor(config, cluster.scheduler_address)
-    client = executor.client
-    started = time.perf_counter()
-    futures = [client.submit(echo, payload, pure=False) for payload in payloads]
-    client.gather(futures)
-    engine_cost = (time.perf_counter() - started) / len(payloads)
+    engine_cost, kilobytes = round_trip_cost(executor.client, outcomes)
     executor.close()
     cluster.close()
     driver_cost = write_cost + engine_cost
     print(
         f"\nper unit: {1e3 * unit_cost:.1f} ms on a worker (read, join, score, make rows); "
         f"at the driver {1e3 * driver_cost:.2f} ms ({1e3 * write_cost:.2f} ms writing its rows, "
-        f"{1e3 * engine_cost:.2f} ms Dask round trip of its "
-        f"{sum(map(len, payloads)) / len(payloads) / 1e3:.0f} kB)"
+        f"{1e3 * engine_cost:.2f} ms Dask round trip of its {kilobytes:.0f} kB)"
     )
-    saturation = unit_cost / driver_cost
-    print(f"driver saturates at about {saturation:.0f} workers ({1 / driver_cost:.0f} units/s)")
-    print("workers  units/s (model)  speed-up")
-    for workers in (1, 2, 4, 8, 16, 32, 64, 128, 256):
-        rate = min(workers / unit_cost, 1 / driver_cost)
-        print(f"{workers:7d}  {rate:15.1f}  {rate * unit_cost:7.1f}×")
+    print_scaling(unit_cost, driver_cost)
     measured = units / best_dask
     print(
         f"measured with 2 local workers: {measured:.1f} units/s "
