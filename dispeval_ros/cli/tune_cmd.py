@@ -119,17 +119,15 @@ def _record(
 
 def run(args: argparse.Namespace) -> int:
     """Check everything, sweep, rank, write the table and the parameters files, print."""
-    from dispeval_ros.core import evaluate_models
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.provenance import provenance_record
     from dispeval_ros.io import list_frames
     from dispeval_ros.io.provenance import files_sha256
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.records import write_run_files
-    from dispeval_ros.offline.tuning.outputs import tune_rows, write_params_files, write_table
+    from dispeval_ros.offline.tuning.outputs import stored_sweep, write_params_files, write_table
     from dispeval_ros.offline.tuning.space import read_space
     from dispeval_ros.offline.tuning.sweep import check_fits, load_scene, run_sweep
-    from dispeval_ros.summary import objective_table
 
     _check_numbers(args)
     space = read_space(args.space)
@@ -165,15 +163,9 @@ def run(args: argparse.Namespace) -> int:
         provenance = provenance_record(record, {"files": files_sha256(inputs)})
         store.set_provenance(provenance)
         write_run_files(store, args.out, provenance, args.objective_measures, args.objectives)
-        methods, objectives, matrix = objective_table(
-            store, args.objective_measures, args.objectives
-        )
-        pooled = store.sequence_scores()
-    models = evaluate_models(methods, matrix)
-    by_name = {c.name: c for c in configurations}
-    first = next(iter(pooled.values()))
-    shown = [(first.criteria[0], m) for m in wanted]  # the first criterion: "all" by default
-    rows = tune_rows([by_name[m] for m in methods], models, pooled, shown)
+        result = stored_sweep(store, args.objective_measures, args.objectives)
+    assert result is not None  # a tune database: its record holds the configurations
+    rows, models, objectives = result.rows, result.models, result.objectives
     table_file = write_table(args.out, rows)
     params = write_params_files(args.out, space.family, rows, args.node_name)
     figures, no_figures = _figures(args.out, rows)

@@ -51,6 +51,7 @@ from dispeval_ros.report.recipes import (  # recipe_values: also from here, its 
     recipe_values,  # noqa: F401
 )
 from dispeval_ros.report.reference import reference_text
+from dispeval_ros.report.sweep import sweep_data
 from dispeval_ros.report.temporal import temporal_data
 from dispeval_ros.summary import GRANULARITIES
 
@@ -445,4 +446,5 @@ def build_report_data(
         "thumbnails": json_safe(thumbnails) if thumbnails else None,
         "latency": latency_data(store, objective_measures, granularity),
         "temporal": temporal_data(store),
+        "sweep": sweep_data(store, objective_measures, granularity),
     }

@@ -40,6 +40,7 @@ SCRIPT_PARTS = (
     "bars",
     "latency",
     "temporal",
+    "sweep",
     "parallel",
     "thumbnails",
     "start",  # main(); the closure closes

@@ -27,6 +27,8 @@ SENSITIVITY_PREFIX = "sensitivity_"
 """``sensitivity_<parameter>.png``: one figure per swept parameter."""
 PARALLEL_FIGURE = "sweep_parallel.png"
 FRONT_COLOUR, REST_COLOUR = "#1a9850", "#b0b0b0"
+MAX_TICKS = 12
+"""Up to this many values, a sensitivity figure marks each of them on its axis."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,8 @@ def sensitivity_figure(parameter: str, rows: Sequence[Sensitivity], path: Path |
         colour = LINE_COLOURS[k % len(LINE_COLOURS)]
         axes.fill_between(row.levels, row.low, row.high, color=colour, alpha=0.2, linewidth=0)
         axes.plot(row.levels, row.median, marker="o", color=colour)
+        if len(row.levels) <= MAX_TICKS:  # the values the parameter took, as they are
+            axes.set_xticks(row.levels, [f"{v:g}" for v in row.levels])
         axes.set_xlabel(parameter)
         axes.set_title(f"{row.measure} (span {row.span:.3g})", fontsize=9, loc="left")
         plain_numbers(axes)
@@ -160,3 +164,71 @@ def write_sweep_figures(points: Sequence[SweepPoint], folder: Path) -> list[Path
             sensitivity_figure(parameter, [r for r in rows if r.parameter == parameter], path)
             written.append(path)
     return written
+
+
+MAX_ROWS = 200
+"""Configurations the page lists (best first); ``tune.csv`` has them all."""
+
+
+def sweep_data(
+    store: Any, measures: Sequence[str] | None = None, granularity: str = "sequence"
+) -> dict[str, Any]:
+    """The page's sweep section: the best configurations with their values, and the figures.
+
+    ``recorded`` false for a database that ``dispeval tune`` did not write. The rows are
+    ``tune.csv``'s (the same call ranks them), the figures PNG data URIs (none without
+    matplotlib, and ``figures_note`` says why).
+    """
+    from dispeval_ros.offline.tuning.outputs import stored_sweep
+
+    result = stored_sweep(store, measures, granularity)
+    if result is None or not result.rows:
+        return {"recorded": False}
+    rows = result.rows
+    points = [SweepPoint(r.configuration.name, r.configuration.values, r.measures, r.group)
+              for r in rows]  # fmt: skip
+    swept = swept_parameters(points)
+    shown = list(rows[0].measures)
+    figures: dict[str, str] = {}
+    note = ""
+    try:
+        with figure_context():
+            figures[PARALLEL_FIGURE] = _png(parallel_figure(points, None))
+            by = sensitivities(points)
+            for parameter in swept:
+                chosen = [r for r in by if r.parameter == parameter]
+                figures[f"{SENSITIVITY_PREFIX}{parameter}.png"] = _png(
+                    sensitivity_figure(parameter, chosen, None)
+                )
+    except ConfigurationError as error:  # matplotlib is the report extra's
+        figures, note = {}, str(error)
+    return {
+        "recorded": True,
+        "configurations": len(rows),
+        "shown": min(len(rows), MAX_ROWS),
+        "parameters": swept,
+        "measures": shown,
+        "headers": ["configuration", "A* group", "reduced", *swept, *shown],
+        "rows": [_row(r, swept) for r in rows[:MAX_ROWS]],
+        "objectives": result.objectives,
+        "figures": figures,
+        "figures_note": note,
+    }
+
+
+def _row(row: Any, swept: Sequence[str]) -> list[Any]:
+    """A configuration's name, group, reduced, swept values and measures (None: not finite)."""
+    values = [row.configuration.values[p] for p in swept]
+    measures = [v if math.isfinite(v) else None for v in row.measures.values()]
+    return [row.configuration.name, row.group, row.reduced, *values, *measures]
+
+
+def _png(figure: Any) -> str:
+    """A figure as a ``data:`` URI (the page may show no other image: its CSP)."""
+    import base64
+    import io
+
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png")
+    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+

@@ -15,10 +15,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from dispeval_ros.core import ModelResult, Scores
+from dispeval_ros.core import ModelResult, Scores, evaluate_models
+from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import InputError
+from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.tuning.parameters import params_document
-from dispeval_ros.offline.tuning.space import Configuration
+from dispeval_ros.offline.tuning.space import Configuration, stored_configurations
+from dispeval_ros.summary import objective_table
 
 TABLE_CSV = "tune.csv"
 PARAMS_FOLDER = "params"
@@ -71,6 +74,37 @@ def tune_rows(
         )
     rows.sort(key=lambda r: (r.group, r.rank, r.configuration.name))
     return rows
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """A sweep's database read back: its configurations ranked, the models, the objectives."""
+
+    rows: list[TuneRow]
+    models: ModelResult
+    objectives: list[str]
+
+
+def stored_sweep(
+    store: ResultsStore, measures: Sequence[str] | None = None, granularity: str = "sequence"
+) -> SweepResult | None:
+    """The rows, models and objectives of a ``dispeval tune`` database (None: not one).
+
+    The models as ``dispeval models`` makes them from the stored frames (``measures``,
+    ``granularity``: the objectives; default SZE and BMPRE); beside the parameters, each
+    objective measure over every scene on the first stored criterion (``all`` by default).
+    """
+    configurations = stored_configurations(store.config())
+    if configurations is None:
+        return None
+    methods, objectives, matrix = objective_table(store, measures, granularity)
+    models = evaluate_models(methods, matrix)
+    pooled = store.sequence_scores()
+    first = next(iter(pooled.values()))
+    wanted = measures or default_objective_measures(first.measures)
+    shown = [(first.criteria[0], m) for m in wanted]
+    rows = tune_rows([configurations[m] for m in methods], models, pooled, shown)
+    return SweepResult(rows, models, objectives)
 
 
 def write_table(folder: Path, rows: Sequence[TuneRow]) -> Path:

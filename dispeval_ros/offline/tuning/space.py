@@ -193,3 +193,19 @@ def read_space(path: Path) -> Space:
         problem = getattr(error, "problem", None) or "not YAML"
         raise InputError(f"{path}: cannot parse the space file{where}: {problem}") from None
     return space_from_document(document, str(path))
+
+
+def stored_configurations(record: Mapping[str, Any]) -> dict[str, Configuration] | None:
+    """The configurations a sweep's run record keeps (None: not a ``dispeval tune`` record).
+
+    Rebuilt from the stored family and full values, as the sweep made them.
+    """
+    values, space = record.get("configurations"), record.get("space")
+    if record.get("command") != "tune" or not isinstance(values, Mapping):
+        return None
+    family = check_family(space.get("family") if isinstance(space, Mapping) else None, "the run")
+    return {
+        name: Configuration(name, dict(full), stereo_method(name, family, full))
+        for name, full in values.items()
+    }
+

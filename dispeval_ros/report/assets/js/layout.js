@@ -88,7 +88,7 @@
     ]);
 
     const main = el('main', {}, [models, curves, bars, buildLatencyView(), buildTemporalView(),
-      parallel, thumbs, run]);
+      buildSweepView(), parallel, thumbs, run]);
     app.appendChild(header);
     app.appendChild(el('div', { className: 'layout' }, [ui.controls, main]));
   }
