@@ -10,8 +10,8 @@ from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, print_json, table, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.offline.tuning.parameters import DEFAULT_NODE_NAME
 from dispeval_ros.offline.tuning.sweep import DEFAULT_CHUNK
+from dispeval_ros.testbed.node_parameters import DEFAULT_NODE_NAME
 
 HELP = "sweep the parameters of an OpenCV stereo matcher on scenes and rank them by A* Groups"
 SHOWN_ROWS = 20

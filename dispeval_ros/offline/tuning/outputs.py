@@ -15,8 +15,8 @@ from pathlib import Path
 
 from dispeval_ros.core import ModelResult, Scores
 from dispeval_ros.errors import InputError
-from dispeval_ros.offline.tuning.parameters import params_document
 from dispeval_ros.offline.tuning.space import Configuration
+from dispeval_ros.testbed.node_parameters import params_document
 
 TABLE_CSV = "tune.csv"
 PARAMS_FOLDER = "params"

@@ -24,14 +24,14 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.errors import ConfigurationError, InputError
-from dispeval_ros.offline.tuning.parameters import (
+from dispeval_ros.testbed.methods import StereoMethod
+from dispeval_ros.testbed.node_parameters import (
     PARAMETERS,
     check_family,
     check_parameter,
     full_values,
     stereo_method,
 )
-from dispeval_ros.testbed.methods import StereoMethod
 
 MAX_GRID = 100_000
 """The most configurations a whole grid may hold (beyond: sample it with --samples)."""
