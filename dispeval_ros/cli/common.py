@@ -151,6 +151,25 @@ def parse_depth_ranges(text: str | None) -> list[tuple[float, float]] | None:
     return ranges
 
 
+LIDAR_DEPTH_RANGES = "0-10,10-30,30-inf"
+"""The depth criteria of a scene whose GT is a LiDAR scan (metres)."""
+
+
+def scene_defaults(args: argparse.Namespace, layout: str) -> None:
+    """A LiDAR scene (``kitti-lidar``): metric depth ranges and the depth measures, unless given.
+
+    A scan is sparse and metric, so depth bands in metres say more than 3-means clusters of its
+    disparities; ``eval --scene`` and ``tune`` score such scenes the same way.
+    """
+    from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
+
+    if layout != "kitti-lidar":
+        return
+    args.depth_ranges = args.depth_ranges or LIDAR_DEPTH_RANGES
+    if args.measures is None:
+        args.measures = [*DEFAULT_MEASURES, *DEPTH_MEASURES]
+
+
 def evaluator_from_args(
     args: argparse.Namespace, roi_names: dict[int, str] | None = None
 ) -> Evaluator:

@@ -21,7 +21,6 @@ from dispeval_ros.core.gtfree import (
     joined,
 )
 from dispeval_ros.core.masks import inside_mask
-from dispeval_ros.core.measures import DEFAULT_MEASURES, DEPTH_MEASURES
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.scene_frames import GT_SOURCES
 
@@ -239,10 +238,7 @@ def _scene_frames(args: argparse.Namespace, estimates: list[tuple[str, Path]]) -
     from dispeval_ros.io.scene_frames import attribute, frame_truth
 
     scenes = list_frames(args.scene)
-    if scenes[0].layout == "kitti-lidar":  # LiDAR GT: metric depth ranges, depth measures
-        args.depth_ranges = args.depth_ranges or "0-10,10-30,30-inf"
-        if args.measures is None:
-            args.measures = [*DEFAULT_MEASURES, *DEPTH_MEASURES]
+    common.scene_defaults(args, scenes[0].layout)
     frames = []
     for scene, assigned in attribute(args.scene, scenes, estimates, args.frame):
         truth = frame_truth(args.scene, scene, args.gt_source or "auto")

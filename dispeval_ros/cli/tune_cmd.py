@@ -57,6 +57,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="the seed of --samples (default 0)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on a Dask cluster: tcp://HOST:PORT of its scheduler (the workers "
+        "must see the scene folders), or local:N for a local cluster of N worker processes",
+    )
+    parser.add_argument(
         "--chunk",
         type=int,
         default=DEFAULT_CHUNK,
@@ -79,8 +85,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    if args.jobs < 1:
-        raise ConfigurationError(f"--jobs must be at least 1, got {args.jobs}")
+    from dispeval_ros.offline.executors import check_engine
+
+    check_engine(args.jobs, args.scheduler)
     if args.chunk < 1:
         raise ConfigurationError(f"--chunk must be at least 1, got {args.chunk}")
     if not args.node_name or any(c in args.node_name for c in " \t\n:"):
@@ -115,17 +122,21 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.core import evaluate_models
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.provenance import provenance_record
+    from dispeval_ros.io import list_frames
     from dispeval_ros.io.provenance import files_sha256
     from dispeval_ros.io.store import ResultsStore
     from dispeval_ros.offline.records import write_run_files
     from dispeval_ros.offline.tuning.outputs import tune_rows, write_params_files, write_table
     from dispeval_ros.offline.tuning.space import read_space
-    from dispeval_ros.offline.tuning.sweep import load_scene, run_sweep
+    from dispeval_ros.offline.tuning.sweep import check_fits, load_scene, run_sweep
     from dispeval_ros.summary import objective_table
 
     _check_numbers(args)
     space = read_space(args.space)
     configurations = space.configurations(args.samples, args.seed)
+    listed = [list_frames(folder) for folder in args.scene]
+    for frames in listed:  # scored as eval --scene scores them
+        common.scene_defaults(args, frames[0].layout)
     evaluator = common.evaluator_from_args(args)
     wanted = args.objective_measures or default_objective_measures(evaluator.measures)
     unknown = [m for m in wanted if m not in evaluator.measures]
@@ -134,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
             f"--objective-measures {' '.join(unknown)}: not among the measures scored "
             f"({', '.join(evaluator.measures)})"
         )
-    loaded = {i: load_scene(folder, evaluator) for i, folder in enumerate(args.scene)}
+    loaded = {i: load_scene(f, evaluator, listed[i]) for i, f in enumerate(args.scene)}
+    check_fits(configurations, args.scene, loaded)
     record = _record(args, space, configurations, evaluator)
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
     progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
@@ -147,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
             evaluator,
             chunk=args.chunk,
             jobs=args.jobs,
+            scheduler=args.scheduler,
             progress=lambda done, total, r: progress.update(done, total, r.frames),
         )
         provenance = provenance_record(record, {"files": files_sha256(inputs)})
@@ -177,10 +190,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(_text(args, space, rows, objectives, models, report))
     print(f"\ntable: {table_file}")
+    folder = params[0].parent if params else args.out
     print(
         wrapped(
-            f"parameters files (A* group 1, node {args.node_name}): "
-            + ", ".join(str(p) for p in params)
+            f"parameters files for node {args.node_name}, one per A* group 1 configuration: "
+            f"{folder}/NAME.yaml ({plural(len(params), 'file')})"
         )
     )
     return 0
@@ -195,8 +209,11 @@ def _text(
     report: Any,
 ) -> str:
     """The sweep's summary line, the best configurations with their values, the reading."""
+    from dispeval_ros.offline.tuning.parameters import PARAMETERS
+
     swept = [name for name, values in space.axes.items() if len(values) > 1]
-    header = ["method", "A* group", "reduced", *swept, *rows[0].measures, "avg rank"]
+    tags = [PARAMETERS[name].short for name in swept]
+    header = ["method", "A* group", "reduced", *tags, *rows[0].measures, "avg rank"]
     body = [
         [
             row.configuration.name,
@@ -219,6 +236,8 @@ def _text(
             f"A* Groups over {plural(len(objectives), 'objective')}, all minimised; measures "
             "shown over all scenes"
             + (f"; best {SHOWN_ROWS} of {len(rows)} shown" if len(rows) > SHOWN_ROWS else "")
+            + "; "
+            + ", ".join(f"{tag} = {name}" for tag, name in zip(tags, swept, strict=True))
         ),
         table(header, body),
         "",

@@ -102,47 +102,65 @@ def check_worker(paths: Sequence[str], version: str) -> str | None:
     return None
 
 
+def connect(scheduler: str) -> tuple[Any, Any]:
+    """A client of ``scheduler`` with a worker, and the local cluster it started (or None).
+
+    ``local:N`` starts N worker processes of one thread each (the kernels use the cores). What
+    fails is one :class:`~dispeval_ros.errors.InputError`: no cluster, no scheduler, no worker.
+    """
+    check_scheduler(scheduler)
+    distributed = _require_distributed()
+    cluster = None
+    count = local_workers(scheduler)
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)  # errors here are one line
+    if count is not None:
+        try:
+            cluster = distributed.LocalCluster(
+                n_workers=count,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.CRITICAL,
+            )
+        except (OSError, RuntimeError, TimeoutError) as error:
+            raise InputError(
+                f"cannot start a local Dask cluster of {count} workers ({_one_line(error)}); "
+                "a script that runs it needs an if __name__ == '__main__' guard"
+            ) from None
+        client = distributed.Client(cluster)
+    else:
+        try:
+            client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as error:
+            raise InputError(
+                f"cannot reach the Dask scheduler at {scheduler} ({_one_line(error)})"
+            ) from None
+    try:
+        client.wait_for_workers(1, timeout=WORKER_TIMEOUT_S)
+    except (OSError, TimeoutError) as error:
+        disconnect(client, cluster)
+        raise InputError(
+            f"the Dask scheduler at {scheduler} has no worker ({_one_line(error)})"
+        ) from None
+    return client, cluster
+
+
+def disconnect(client: Any, cluster: Any) -> None:
+    """Close a client of :func:`connect` and the local cluster it started (errors ignored)."""
+    for part in (client, cluster):
+        if part is not None:
+            with contextlib.suppress(Exception):
+                part.close()
+
+
 class DaskExecutor:
     """Units as Dask tasks, one thread per worker process (the kernels use the cores)."""
 
     def __init__(self, config: CoreConfig, scheduler: str) -> None:
-        check_scheduler(scheduler)
-        distributed = _require_distributed()
         self.config = config
         self.scheduler = scheduler
-        self._cluster: Any = None
         self._running: dict[Any, tuple[int, Unit]] = {}
-        count = local_workers(scheduler)
-        logging.getLogger("distributed").setLevel(logging.CRITICAL)  # errors here are one line
-        if count is not None:
-            try:
-                self._cluster = distributed.LocalCluster(
-                    n_workers=count,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                    silence_logs=logging.CRITICAL,
-                )
-            except (OSError, RuntimeError, TimeoutError) as error:
-                raise InputError(
-                    f"cannot start a local Dask cluster of {count} workers ({_one_line(error)}); "
-                    "a script that runs it needs an if __name__ == '__main__' guard"
-                ) from None
-            self._client = distributed.Client(self._cluster)
-        else:
-            try:
-                self._client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-            except (OSError, TimeoutError, ValueError, TypeError) as error:
-                raise InputError(
-                    f"cannot reach the Dask scheduler at {scheduler} ({_one_line(error)})"
-                ) from None
-        try:
-            self._client.wait_for_workers(1, timeout=WORKER_TIMEOUT_S)
-        except (OSError, TimeoutError) as error:
-            self.close()
-            raise InputError(
-                f"the Dask scheduler at {scheduler} has no worker ({_one_line(error)})"
-            ) from None
+        self._client, self._cluster = connect(scheduler)
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
 
     @property
@@ -213,14 +231,8 @@ class DaskExecutor:
 
     def close(self) -> None:
         """Close the client (and the local cluster this executor started)."""
-        for part in (self._client_or_none(), self._cluster):
-            if part is not None:
-                with contextlib.suppress(Exception):
-                    part.close()
+        disconnect(self._client, self._cluster)
         self._running.clear()
-
-    def _client_or_none(self) -> Any:
-        return getattr(self, "_client", None)
 
 
 def _task_error(error: BaseException | None) -> str:

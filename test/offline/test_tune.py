@@ -238,3 +238,145 @@ def test_two_worker_processes_give_the_same_database(
     assert dump(out) == dump(sweep["out"])
     assert "A* group" in text
     assert "sgbm_w5_u" in text
+
+
+def test_a_search_wider_than_the_images_is_refused_before_anything_is_written(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from refusal_support import assert_refused
+
+    space = sweep["root"] / "wide.yaml"
+    space.write_text(
+        "family: sgbm\nparameters: {correlation_window_size: [5, 7], disparity_range: 512}"
+    )
+    out = sweep["root"] / "wide"
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(sweep["scenes"][0]), "--out", str(out)
+    )
+    assert_refused(code, err, "ArtL: images 347 px wide are too narrow", "sgbm_w5")
+    assert not out.exists()
+    code, _, err = tune(capsys, *sweep["argv"], "--out", str(out), "--objective-measures", "nope")
+    assert_refused(code, err, "--objective-measures nope: not among the measures scored")
+    assert not out.exists()
+
+
+def test_printed_measures_equal_a_numpy_recomputation(sweep: dict) -> None:
+    """tune.csv's SZE and BMPRE on 'all' over both scenes: sums of the per-scene definitions."""
+    from reference import numpy_measures, valid_of
+
+    from dispeval_ros.io import load_scene
+
+    lines = (sweep["out"] / "tune.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = {r[0]: dict(zip(header, r, strict=True)) for r in (x.split(",") for x in lines[1:])}
+    chosen = [lines[1].split(",")[0], lines[-1].split(",")[0], "sgbm_w7_u10_mode2"]
+    totals = {name: {"sze": 0.0, "bmpre": 0.0} for name in chosen}
+    for scene in sweep["scenes"]:
+        loaded = load_scene(scene)  # the files as read; the measures are recomputed here
+        left = cv2.cvtColor(cv2.imread(str(scene / "im0.png")), cv2.COLOR_BGR2GRAY)
+        right = cv2.cvtColor(cv2.imread(str(scene / "im1.png")), cv2.COLOR_BGR2GRAY)
+        for name in chosen:
+            estimate = node_map(left, right, expected_configurations()[name])
+            criteria = {"all": valid_of(loaded.gt)}
+            values = numpy_measures(loaded.gt, estimate, criteria, "interpolate", loaded.camera)
+            for measure in totals[name]:
+                totals[name][measure] += values["all"][measure]
+    for name in chosen:
+        for measure, want in totals[name].items():
+            have = float(rows[name][f"{measure} (all)"])
+            assert have == pytest.approx(want, rel=1e-6), (name, measure)
+
+
+def test_a_lidar_scene_is_scored_as_eval_scores_it(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A scan as GT: eval's metric depth ranges and depth measures, the same rows."""
+    scene = shared_data / "kitti-lidar" / "stereo-rcnn-demo"
+    space = tmp_path / "bm.yaml"
+    space.write_text(
+        "family: bm\nparameters: {correlation_window_size: [9, 15], disparity_range: 128}"
+    )
+    out = tmp_path / "tune"
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(scene), "--out", str(out), "--quiet"
+    )
+    assert code == 0, err
+    images = [cv2.imread(str(scene / name)) for name in ("left.png", "right.png")]
+    left, right = (i if i.ndim == 2 else cv2.cvtColor(i, cv2.COLOR_BGR2GRAY) for i in images)
+    estimates = []
+    for window in (9, 15):  # the node's BM: its defaults for what the space leaves out
+        bm = cv2.StereoBM.create(128, window)
+        bm.setPreFilterSize(9)
+        bm.setPreFilterCap(31)
+        bm.setTextureThreshold(10)
+        bm.setUniquenessRatio(15)
+        bm.setSpeckleWindowSize(100)
+        bm.setSpeckleRange(4)
+        raw = bm.compute(left, right)
+        disparity = raw.astype(np.float32) / 16
+        disparity[raw < 0] = -1
+        path = tmp_path / f"bm_w{window}.npy"
+        np.save(path, disparity)
+        estimates += ["--est", f"bm_w{window}={path}"]
+    assert main(["eval", "--scene", str(scene), *estimates, "--out", str(tmp_path / "eval")]) == 0
+    capsys.readouterr()
+    rows = frame_rows(tmp_path / "eval", scene.name)
+    assert rows
+    assert frame_rows(out, scene.name) == rows
+    with ResultsStore.open(out) as store:
+        assert store.config()["depth_ranges"] == "0-10,10-30,30-inf"
+
+
+def test_a_local_dask_cluster_gives_the_same_database(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("distributed")
+    out = sweep["root"] / "dask"
+    code, _, err = tune(capsys, *sweep["argv"], "--out", str(out), "--scheduler", "local:2")
+    assert code == 0, err
+    assert dump(out) == dump(sweep["out"])
+
+
+def _units_stored(folder: Path) -> int:
+    try:
+        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
+    except sqlite3.Error:
+        return 0
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.Error:
+        return 0
+    finally:
+        db.close()
+
+
+def test_resume_after_a_kill_gives_the_same_database(
+    sweep: dict, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SIGKILL mid-sweep (one configuration a unit): the resumed database is the whole run's."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    argv = [*sweep["argv"], "--chunk", "1"]
+    whole, killed = sweep["root"] / "chunk1", sweep["root"] / "killed"
+    code, _, err = tune(capsys, *argv, "--out", str(whole))
+    assert code == 0, err
+    command = [sys.executable, "-m", "dispeval_ros", "tune", *argv, "--out", str(killed)]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while _units_stored(killed) < 3 and process.poll() is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        process.wait()
+    stored = _units_stored(killed)
+    assert 3 <= stored < 36, stored  # killed mid-sweep
+    code, text, err = tune(capsys, *argv, "--out", str(killed), "--resume")
+    assert code == 0, err
+    assert f"{stored} done before" in text
+    assert dump(killed) == dump(whole)

@@ -97,9 +97,11 @@ class Space:
     def _configuration(self, chosen: Mapping[str, int], swept: Sequence[str]) -> Configuration:
         tags = [f"{PARAMETERS[name].short}{chosen[name]}" for name in swept]
         name = "_".join([self.family, *tags])
-        return Configuration(
-            name, full_values(self.family, chosen), stereo_method(name, self.family, chosen)
-        )
+        try:
+            method = stereo_method(name, self.family, chosen)
+        except ConfigurationError as error:
+            raise ConfigurationError(f"{self.source}: {error}") from None
+        return Configuration(name, full_values(self.family, chosen), method)
 
 
 def _draw(size: int, count: int, seed: int) -> list[int]:

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import multiprocessing
 import threading
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +24,8 @@ import numpy as np
 
 from dispeval_ros.core import Evaluator, Reference
 from dispeval_ros.core.records import FrameScores, MatchCounts
-from dispeval_ros.errors import DispevalError, InputError
+from dispeval_ros.errors import ConfigurationError, DispevalError, InputError
+from dispeval_ros.io.scenes import Scene
 from dispeval_ros.io.store import PreparedUnit, ResultsStore, prepare_unit
 from dispeval_ros.offline.bag_eval import bag_location, sequence_names
 from dispeval_ros.offline.executors import end_with_the_parent
@@ -74,14 +75,19 @@ def evaluator_settings(evaluator: Evaluator) -> dict[str, Any]:
     return {name: getattr(evaluator, name) for name in EVALUATOR_FIELDS}
 
 
-def load_scene(folder: Path, evaluator: Evaluator) -> list[SceneFrame]:
-    """Every frame of a scene folder: images (8-bit grey) and reference; one line if unusable."""
+def load_scene(
+    folder: Path, evaluator: Evaluator, listed: Sequence[Scene] | None = None
+) -> list[SceneFrame]:
+    """Every frame of a scene folder: images (8-bit grey) and reference; one line if unusable.
+
+    ``listed``: the folder's frames as :func:`~dispeval_ros.io.list_frames` returned them.
+    """
     from dispeval_ros.io import list_frames
     from dispeval_ros.io.files import read_stereo_pair
     from dispeval_ros.io.scene_frames import frame_truth
 
     frames = []
-    for stamp, scene in enumerate(list_frames(folder)):
+    for stamp, scene in enumerate(list_frames(folder) if listed is None else listed):
         truth = frame_truth(folder, scene, "auto")
         if scene.left is None or scene.right is None:
             raise InputError(f"{folder}: frame {truth.frame} has no left and right images to match")
@@ -98,6 +104,29 @@ def load_scene(folder: Path, evaluator: Evaluator) -> list[SceneFrame]:
             SceneFrame(stamp, truth.frame, truth.source, left, right, reference, sorted(files))
         )
     return frames
+
+
+def check_fits(
+    configurations: Sequence[Configuration],
+    scenes: Sequence[Path],
+    loaded: Mapping[int, list[SceneFrame]],
+) -> None:
+    """Refuse (one line) an SGBM configuration whose search does not fit a scene's images.
+
+    OpenCV's SGBM raises unless ``width − (min_disparity + disparity_range)`` exceeds half the
+    window; found here, before anything is written, rather than in the middle of the run.
+    """
+    for index, folder in enumerate(scenes):
+        for width in sorted({frame.left.shape[1] for frame in loaded[index]}):
+            for configuration in configurations:
+                method = configuration.method
+                reach = method.min_disparity + method.num_disparities
+                if method.kind == "sgbm" and width - reach <= method.block_size // 2:
+                    raise ConfigurationError(
+                        f"{folder}: images {width} px wide are too narrow for configuration "
+                        f"{configuration.name}: OpenCV's SGBM needs width − (min_disparity + "
+                        f"disparity_range) = {width - reach} > correlation_window_size / 2"
+                    )
 
 
 def sequence_info(folder: Path, frames: Sequence[SceneFrame]) -> dict[str, object]:
@@ -155,6 +184,9 @@ class _Worker:
 
 
 _process_worker: dict[str, _Worker] = {}
+"""A pool process's worker (set once when it starts)."""
+_dask_workers: dict[str, _Worker] = {}
+"""A Dask worker process's workers, one per sweep setup (scenes loaded once each)."""
 
 
 def _start_worker(setup: Setup) -> None:
@@ -166,10 +198,50 @@ def _run_in_worker(unit: TuneUnit) -> PreparedUnit:
     return _process_worker["worker"].run(unit)
 
 
-def _outcomes(
-    setup: Setup, units: Sequence[TuneUnit], jobs: int, loaded: Mapping[int, list[SceneFrame]]
+def _run_on_dask(setup: Setup, unit: TuneUnit) -> PreparedUnit:
+    key = repr(setup)
+    worker = _dask_workers.get(key)
+    if worker is None:
+        worker = _dask_workers[key] = _Worker(setup)
+    return worker.run(unit)
+
+
+def _in_order(
+    units: Sequence[TuneUnit],
+    submit: Callable[[TuneUnit], Any],
+    wait_any: Callable[[list[Any]], Iterable[Any]],
+    window: int,
 ) -> Iterator[PreparedUnit]:
-    """Each unit's rows, in plan order, computed here (``jobs`` 1) or on ``jobs`` processes."""
+    """Each unit's rows in plan order, at most ``window`` units ahead of the oldest one due.
+
+    ``submit`` starts a unit and returns its future; ``wait_any`` returns the futures done (at
+    least one). A unit's error is the run's (raised here, the units before it written).
+    """
+    running: dict[Any, int] = {}
+    arrived: dict[int, PreparedUnit] = {}
+    submitted = written = 0
+    while written < len(units):
+        while submitted < len(units) and submitted < written + window:
+            running[submit(units[submitted])] = submitted
+            submitted += 1
+        for future in wait_any(list(running)):
+            arrived[running.pop(future)] = future.result()
+        while written in arrived:
+            yield arrived.pop(written)
+            written += 1
+
+
+def _outcomes(
+    setup: Setup,
+    units: Sequence[TuneUnit],
+    jobs: int,
+    loaded: Mapping[int, list[SceneFrame]],
+    scheduler: str | None = None,
+) -> Iterator[PreparedUnit]:
+    """Each unit's rows, in plan order: here (``jobs`` 1), on processes or on a Dask cluster."""
+    if scheduler is not None:
+        yield from _on_dask(setup, units, scheduler)
+        return
     if jobs == 1:
         worker = _Worker(setup, loaded)
         for unit in units:
@@ -183,22 +255,38 @@ def _outcomes(
         initargs=(setup,),
     )
     try:
-        window = jobs * WINDOW_PER_WORKER
-        running: dict[Future[PreparedUnit], int] = {}
-        arrived: dict[int, PreparedUnit] = {}
-        submitted = written = 0
-        while written < len(units):
-            while submitted < len(units) and submitted < written + window:
-                running[pool.submit(_run_in_worker, units[submitted])] = submitted
-                submitted += 1
-            done, _ = wait(list(running), return_when=FIRST_COMPLETED)
-            for future in done:
-                arrived[running.pop(future)] = future.result()  # a unit's error: the run's
-            while written in arrived:
-                yield arrived.pop(written)
-                written += 1
+        yield from _in_order(
+            units,
+            lambda unit: pool.submit(_run_in_worker, unit),
+            lambda futures: wait(futures, return_when=FIRST_COMPLETED)[0],
+            jobs * WINDOW_PER_WORKER,
+        )
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _on_dask(setup: Setup, units: Sequence[TuneUnit], scheduler: str) -> Iterator[PreparedUnit]:
+    """The units as Dask tasks (not pure: a retry runs again); a lost scheduler is one line."""
+    from dispeval_ros.offline.dask_executor import connect, disconnect
+
+    client, cluster = connect(scheduler)
+    import distributed
+
+    workers = max(1, len(client.scheduler_info().get("workers", {})))
+    try:
+        yield from _in_order(
+            units,
+            lambda unit: client.submit(_run_on_dask, setup, unit, pure=False),
+            lambda futures: distributed.wait(futures, return_when="FIRST_COMPLETED").done,
+            workers * WINDOW_PER_WORKER,
+        )
+    except (OSError, TimeoutError, CancelledError) as error:
+        raise InputError(
+            f"lost the Dask scheduler at {scheduler} ({type(error).__name__}); the units "
+            "written so far are kept, continue with --resume"
+        ) from None
+    finally:
+        disconnect(client, cluster)
 
 
 @dataclass
@@ -219,12 +307,15 @@ def run_sweep(
     *,
     chunk: int = DEFAULT_CHUNK,
     jobs: int = 1,
+    scheduler: str | None = None,
     progress: Callable[[int, int, SweepReport], None] | None = None,
 ) -> SweepReport:
     """Score every configuration on every frame of ``scenes`` into ``store`` (done units skipped).
 
     ``loaded`` holds the scenes as :func:`load_scene` read them (the driver checked them all
-    before creating the store); the in-process run reuses them, worker processes load their own.
+    before creating the store); the in-process run reuses them, worker processes (``jobs``
+    > 1, or a Dask cluster: ``scheduler`` as ``dispeval bag --scheduler`` takes it) load their
+    own.
     """
     sequences = sequence_names(list(scenes))
     for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
@@ -233,8 +324,10 @@ def run_sweep(
     done = {sequence: store.done_units(sequence) for sequence in sequences}
     todo = [unit for unit in units if unit.name not in done[unit.sequence]]
     report = SweepReport(units_skipped=len(units) - len(todo))
-    setup = Setup(tuple(scenes), evaluator_settings(evaluator))
-    for unit, prepared in zip(todo, _outcomes(setup, todo, jobs, loaded), strict=False):
+    # absolute: a Dask worker resolves relative paths against its own folder
+    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
+    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
+    for unit, prepared in zip(todo, outcomes, strict=False):
         store.add_prepared(prepared)
         report.units_done += 1
         report.frames += len(unit.configurations) * len(loaded[unit.scene])
