@@ -209,7 +209,7 @@ def _text(
     report: Any,
 ) -> str:
     """The sweep's summary line, the best configurations with their values, the reading."""
-    from dispeval_ros.offline.tuning.parameters import PARAMETERS
+    from dispeval_ros.testbed.node_parameters import PARAMETERS
 
     swept = [name for name, values in space.axes.items() if len(values) > 1]
     tags = [PARAMETERS[name].short for name in swept]
