@@ -15,8 +15,8 @@ import pytest
 from refusal_support import assert_refused
 
 from dispeval_ros.cli.main import main
-from dispeval_ros.testbed.node_parameters import params_document
 from dispeval_ros.offline.tuning.space import space_from_document
+from dispeval_ros.testbed.node_parameters import params_document
 
 # stereo_image_proc (ROS 2) disparity node: declared defaults
 SGBM_DEFAULTS = {
