@@ -148,3 +148,7 @@ class TestbedDisparityNode(Node):
 def main(args: Sequence[str] | None = None) -> int:
     """``ros2 run dispeval_ros testbed_disparity``."""
     return run_node(lambda stop: TestbedDisparityNode(), DEFAULT_NODE_NAME, args)
+
+
+if __name__ == "__main__":  # python -m dispeval_ros.ros.testbed_disparity [--ros-args ...]
+    raise SystemExit(main())

@@ -24,6 +24,9 @@ from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.io.store.naming import bag_location, sequence_names
 from dispeval_ros.testbed.node_parameters import Configuration
 
+NODE_TIMEOUT = 5.0
+"""``tune --node``: seconds to wait for the node's map of one frame (then it counts as dropped)."""
+
 
 @dataclass(frozen=True)
 class TuneUnit:
@@ -140,6 +143,8 @@ class SweepReport:
     units_done: int = 0
     units_skipped: int = 0
     frames: int = 0
+    dropped: int = 0
+    """Frames a node sent no map of in time (``tune --node``; counted, not scored)."""
 
 
 def start_sweep(
