@@ -6,7 +6,8 @@ harness can read its parameters before and after. A sweep of 6 SGBM configuratio
 MiddEval3 Q scenes must store, frame for frame, the very rows the offline ``tune`` of the same
 space stores (issue 25's must-hold), with no frame dropped, and leave the node's parameters as
 it found them. A refused value and a node that dies are one line with exit 2 and a database
-that ``--resume`` completes; a node that is not there is one line and nothing written.
+that ``--resume`` completes; so is Ctrl-C (exit 130), the node's parameters restored; a node that
+is not there is one line and nothing written.
 
 The space starts the search at ``min_disparity: 1``: the offline sweep scores a map as a file
 (valid means > 0) and the node's maps as the message defines them (valid inside
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -244,6 +246,57 @@ def test_a_node_that_dies_mid_run_is_one_line_and_keeps_what_was_done(
     assert "2 configuration unit(s) written are kept" in line
     with ResultsStore.open(out) as store:
         assert sorted(store.methods()) == sorted(CONFIGURATIONS[:2])
+
+
+def test_ctrl_c_restores_the_node_and_resume_completes_the_database(
+    ros: Ros,
+    domain: None,
+    nodes: list[NodeProcess],
+    space: Path,
+    offline: Path,
+    shared_data: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    slow = NodeProcess("--delay", "0.3")
+    nodes.append(slow)
+    parameters = remote(ros, slow)
+    before = parameters.get(list(node_defaults()))
+    out = tmp_path / "live"
+    argv = ["tune", "--node", slow.name, "--space", str(space), *scene_args(shared_data)]
+    command = [sys.executable, "-m", "dispeval_ros", *argv, "--out", str(out), "--quiet"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE.parents[1]), *sys.path])}
+    run = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while units_done(out) < 2 and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    assert run.returncode == 130, err
+    assert len(err.decode().strip().splitlines()) == 1, err  # "interrupted", no traceback
+    assert 2 <= units_done(out) < len(CONFIGURATIONS) * len(SCENES)
+    assert parameters.get(list(node_defaults())) == before
+    code, err = tune_node(capsys, space, shared_data, slow.name, out, "--resume")
+    assert code == 0, err
+    assert frame_rows(out) == frame_rows(offline)
+
+
+def units_done(folder: Path) -> int:
+    """Units written so far (read while the run writes)."""
+    if not (folder / RESULTS_FILE).is_file():
+        return 0
+    db = sqlite3.connect(folder / RESULTS_FILE, timeout=5)
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.OperationalError:  # tables not made yet
+        return 0
+    finally:
+        db.close()
 
 
 def test_a_node_that_does_not_exist_is_one_line_and_writes_nothing(
