@@ -7,7 +7,7 @@ MiddEval3 Q scenes must store, frame for frame, the very rows the offline ``tune
 space stores (issue 25's must-hold), with no frame dropped, and leave the node's parameters as
 it found them. A refused value and a node that dies are one line with exit 2 and a database
 that ``--resume`` completes; so is Ctrl-C (exit 130), the node's parameters restored; a node that
-is not there is one line and nothing written.
+is not there, or one without the disparity node's parameters, is one line and nothing written.
 
 The space starts the search at ``min_disparity: 1``: the offline sweep scores a map as a file
 (valid means > 0) and the node's maps as the message defines them (valid inside
@@ -22,6 +22,7 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -307,4 +308,32 @@ def test_a_node_that_does_not_exist_is_one_line_and_writes_nothing(
     assert code == 2
     (line,) = err.strip().splitlines()
     assert "no node /no_such_disparity_node" in line
+    assert not out.exists()
+
+
+def test_a_node_without_the_parameters_is_one_line_and_writes_nothing(
+    ros: Ros,
+    domain: None,
+    space: Path,
+    shared_data: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    stop = threading.Event()
+
+    def spin() -> None:  # the harness's helper node answers its parameter services meanwhile
+        while not stop.is_set():
+            ros.executor.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    out = tmp_path / "live"
+    try:
+        code, err = tune_node(capsys, space, shared_data, f"/{ros.helper.get_name()}", out)
+    finally:
+        stop.set()
+        thread.join()
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert f"node /{ros.helper.get_name()} has no parameter 'stereo_algorithm'" in line
     assert not out.exists()
