@@ -28,16 +28,18 @@ from dispeval_ros.ros import convert
 from dispeval_ros.ros.lifecycle import run_node
 from dispeval_ros.ros.param_table import DOUBLE, INTEGER, Param
 from dispeval_ros.ros.params import declare_parameters
-from dispeval_ros.testbed.disparity_node import DisparityNodeModel, ExactTimeSync, node_defaults
+from dispeval_ros.testbed.disparity_node import (
+    INPUTS,
+    OUTPUT,
+    DisparityNodeModel,
+    ExactTimeSync,
+    node_defaults,
+)
 from dispeval_ros.testbed.node_parameters import (
     ALGORITHM_PARAMETER,
     DEFAULT_NODE_NAME,
     PARAMETERS,
 )
-
-INPUTS = ("left/image_rect", "left/camera_info", "right/image_rect", "right/camera_info")
-"""The node's input topics (relative: remap or namespace them), as stereo_image_proc's."""
-OUTPUT = "disparity"
 
 
 def parameter_rows() -> tuple[Param, ...]:

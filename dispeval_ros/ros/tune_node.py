@@ -41,11 +41,9 @@ from dispeval_ros.io.store import ResultsStore, prepare_unit
 from dispeval_ros.ros import convert
 from dispeval_ros.ros.parameter_client import RemoteParameters
 from dispeval_ros.stream.tuning import NODE_TIMEOUT, SceneFrame, SweepReport, TuneUnit, start_sweep
+from dispeval_ros.testbed.disparity_node import INPUTS, OUTPUT
 from dispeval_ros.testbed.node_parameters import Configuration, ros_parameters
 
-INPUTS = ("left/image_rect", "left/camera_info", "right/image_rect", "right/camera_info")
-"""stereo_image_proc's disparity-node inputs (in the order a frame's messages are sent)."""
-OUTPUT = "disparity"
 NOMINAL_CAMERA = Camera(1.0, 1.0)
 """Sent when a scene has no calibration (the node needs a CameraInfo pair; no depth scored)."""
 STAMP_STEP_NS = 1000
@@ -196,7 +194,7 @@ class NodeSweep:
         messages = {
             "left/image_rect": convert.image_msg(frame.left, stamp, "stereo_left", "mono8"),
             "left/camera_info": left_info,
-            "right/image_rect": convert.image_msg(frame.right, stamp, "stereo_left", "mono8"),
+            "right/image_rect": convert.image_msg(frame.right, stamp, "stereo_right", "mono8"),
             "right/camera_info": right_info,
         }
         self._wanted.add(stamp)

@@ -27,6 +27,10 @@ from dispeval_ros.testbed.node_parameters import (
     stereo_method,
 )
 
+INPUTS = ("left/image_rect", "left/camera_info", "right/image_rect", "right/camera_info")
+"""The node's input topics (relative: remap or namespace them), as stereo_image_proc's."""
+OUTPUT = "disparity"
+"""Its output topic (``stereo_msgs/DisparityImage``)."""
 DELTA_D = 1.0 / 16.0
 """OpenCV's disparities are fixed point with 4 fractional bits."""
 
