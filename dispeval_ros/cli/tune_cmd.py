@@ -126,8 +126,8 @@ def _check_numbers(args: argparse.Namespace) -> None:
         raise ConfigurationError(f"--node-name must be a ROS node name, got {args.node_name!r}")
 
 
-def _connect(args: argparse.Namespace, family: str, loaded: dict[int, Any]) -> Any:
-    """The connection to ``--node`` (checked: there, its parameters, answering), not yet open."""
+def _connect(args: argparse.Namespace, family: str, loaded: dict[int, Any], start: Any) -> Any:
+    """The connection to ``--node`` (checked when opened: there, its parameters, ``start``)."""
     try:
         from dispeval_ros.ros.tune_node import NodeSweep
     except ImportError as error:
@@ -136,7 +136,7 @@ def _connect(args: argparse.Namespace, family: str, loaded: dict[int, Any]) -> A
             "install (see README 'ROS 2 nodes')"
         ) from None
     timeout = NODE_TIMEOUT if args.timeout is None else args.timeout
-    return NodeSweep(args.node, family, loaded[0][0], args.node_namespace, timeout)
+    return NodeSweep(args.node, family, loaded[0][0], start, args.node_namespace, timeout)
 
 
 def _record(
@@ -197,7 +197,9 @@ def run(args: argparse.Namespace) -> int:
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
     progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
     on_progress = lambda done, total, r: progress.update(done, total, r.frames)  # noqa: E731
-    node = _connect(args, space.family, loaded) if args.node else contextlib.nullcontext()
+    node: Any = contextlib.nullcontext()
+    if args.node:
+        node = _connect(args, space.family, loaded, configurations[0])
     with node as sweep, ResultsStore.create(args.out, record, resume=args.resume) as store:
         if sweep is None:
             report = run_sweep(

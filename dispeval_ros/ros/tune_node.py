@@ -80,9 +80,9 @@ def camera_info(camera: Camera, frame: SceneFrame, stamp: int, right: bool) -> C
 class NodeSweep:
     """A connection to one node: its parameters, its inputs and its output (a context manager).
 
-    Opening checks the node is there, has every parameter of ``family`` and answers a frame,
-    before anything is written; closing restores its parameters (unless it stopped answering)
-    and shuts the connection down.
+    Opening checks the node is there, has every parameter of ``family``, takes the
+    configuration ``start`` and answers a frame with it, before anything is written; closing
+    restores its parameters (unless it stopped answering) and shuts the connection down.
     """
 
     def __init__(
@@ -90,6 +90,7 @@ class NodeSweep:
         node: str,
         family: str,
         first: SceneFrame,
+        start: Configuration,
         namespace: str | None = None,
         timeout: float = NODE_TIMEOUT,
     ) -> None:
@@ -97,6 +98,7 @@ class NodeSweep:
         self.family = family
         self.timeout = timeout
         self._first = first
+        self._start = start
         self._stamp = time.time_ns() // STAMP_STEP_NS * STAMP_STEP_NS
         self._outputs: dict[int, Any] = {}
         self._wanted: set[int] = set()
@@ -155,12 +157,13 @@ class NodeSweep:
                 f"node {self.target} does not take {', '.join(map(topic, INPUTS))} or publish "
                 f"{self.output} (within {self.timeout:g} s); is --node-namespace right?"
             )
+        self.remote.set(ros_parameters(self.family, self._start.values))  # what it will run
         for _ in range(3):  # until the node has seen this subscriber: it computes for listeners
             if self._send(self._first) is not None:
                 return
         raise ConfigurationError(
             f"node {self.target} published nothing on {self.output} for 3 frames sent to its "
-            f"inputs (waited {self.timeout:g} s each)"
+            f"inputs with configuration {self._start.name} (waited {self.timeout:g} s each)"
         )
 
     def _shutdown(self) -> None:

@@ -227,6 +227,28 @@ def test_a_refused_value_is_one_line_and_resume_completes_the_database(
     assert frame_rows(out) == frame_rows(offline)
 
 
+def test_a_first_configuration_refused_is_one_line_and_writes_nothing(
+    ros: Ros,
+    domain: None,
+    nodes: list[NodeProcess],
+    space: Path,
+    shared_data: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    refusing = NodeProcess("--refuse", "correlation_window_size=5")
+    nodes.append(refusing)
+    before = remote(ros, refusing).get(list(node_defaults()))
+    out = tmp_path / "live"
+    code, err = tune_node(capsys, space, shared_data, refusing.name, out)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert f"node {refusing.name} refused " in line
+    assert "correlation_window_size 5 not here" in line
+    assert not out.exists()
+    assert remote(ros, refusing).get(list(node_defaults())) == before
+
+
 def test_a_node_that_dies_mid_run_is_one_line_and_keeps_what_was_done(
     ros: Ros,
     domain: None,
