@@ -91,6 +91,7 @@ def console_scripts() -> list[str]:
         scripts += [
             "evaluator = dispeval_ros.ros.evaluator:main",
             "summarizer = dispeval_ros.ros.summarizer:main",
+            "testbed_disparity = dispeval_ros.ros.testbed_disparity:main",
         ]
     return scripts
 

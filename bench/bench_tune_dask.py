@@ -35,14 +35,8 @@ from scaling import print_scaling, round_trip_cost  # this folder is on sys.path
 from dispeval_ros.core import Evaluator
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.tuning.space import space_from_document
-from dispeval_ros.offline.tuning.sweep import (
-    Setup,
-    _Worker,
-    evaluator_settings,
-    load_scene,
-    plan,
-    run_sweep,
-)
+from dispeval_ros.offline.tuning.sweep import Setup, _Worker, evaluator_settings, run_sweep
+from dispeval_ros.stream.tuning import load_scene, plan
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("DISPEVAL_DATA") or ROOT.parent / "shared" / "data")

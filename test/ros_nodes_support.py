@@ -130,6 +130,24 @@ def camera_info_msg(stamp: int, right: bool) -> Any:
     )
 
 
+def rig_camera_info(frame: Any, stamp: int, right: bool, frame_id: str = "stereo_left") -> Any:
+    """The CameraInfo of a test-bed frame's left or right rectified camera (``P[3] = −f·B``)."""
+    f, baseline = frame.camera.f, frame.camera.baseline
+    cx, cy = frame.principal
+    tx = -f * baseline if right else 0.0
+    height, width = frame.left.shape[:2]
+    return sensor_msgs.CameraInfo(
+        header=convert.header_msg(stamp, "stereo_right" if right else frame_id),
+        height=height,
+        width=width,
+        distortion_model="plumb_bob",
+        d=[0.0] * 5,
+        k=np.array([f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0]),
+        r=np.eye(3).reshape(-1),
+        p=np.array([f, 0.0, cx, tx, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
+    )
+
+
 def frame_messages(topics: Topics, k: int, bad_shape: bool = False) -> list[tuple[str, Any]]:
     stamp = START_NS + k * FRAME_NS
     gt = gt_map(k)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -10,8 +11,9 @@ from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, print_json, table, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError
-from dispeval_ros.offline.tuning.parameters import DEFAULT_NODE_NAME
 from dispeval_ros.offline.tuning.sweep import DEFAULT_CHUNK
+from dispeval_ros.stream.tuning import NODE_TIMEOUT
+from dispeval_ros.testbed.node_parameters import DEFAULT_NODE_NAME
 
 HELP = "sweep the parameters of an OpenCV stereo matcher on scenes and rank them by A* Groups"
 SHOWN_ROWS = 20
@@ -77,6 +79,27 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=DEFAULT_NODE_NAME,
         help=f"the node the parameters files are for (default {DEFAULT_NODE_NAME})",
     )
+    parser.add_argument(
+        "--node",
+        metavar="NAME",
+        help="sweep this running ROS 2 disparity node instead of OpenCV here (stereo_image_proc's "
+        "interface; needs rclpy): each configuration is set through its parameter services, "
+        "the scene frames are sent to its inputs and its disparity maps scored; its parameters "
+        "are restored at the end; one unit per configuration",
+    )
+    parser.add_argument(
+        "--node-namespace",
+        metavar="NS",
+        help="the namespace of the node's topics (default: the node's own namespace)",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="with --node: seconds to wait for the node's map of a frame before counting it "
+        f"dropped (default {NODE_TIMEOUT:g})",
+    )
     common.add_evaluation_options(parser)
     common.add_objective_options(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress line")
@@ -90,8 +113,30 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_engine(args.jobs, args.scheduler)
     if args.chunk < 1:
         raise ConfigurationError(f"--chunk must be at least 1, got {args.chunk}")
+    if args.node is None:
+        if args.node_namespace is not None or args.timeout is not None:
+            raise ConfigurationError("--node-namespace and --timeout apply to --node only")
+    elif args.jobs != 1 or args.scheduler is not None:
+        raise ConfigurationError("--node drives one node: --jobs and --scheduler do not apply")
+    if args.timeout is not None and not args.timeout > 0:
+        raise ConfigurationError(
+            f"--timeout must be a positive number of seconds, got {args.timeout}"
+        )
     if not args.node_name or any(c in args.node_name for c in " \t\n:"):
         raise ConfigurationError(f"--node-name must be a ROS node name, got {args.node_name!r}")
+
+
+def _connect(args: argparse.Namespace, family: str, loaded: dict[int, Any], start: Any) -> Any:
+    """The connection to ``--node`` (checked when opened: there, its parameters, ``start``)."""
+    try:
+        from dispeval_ros.ros.tune_node import NodeSweep
+    except ImportError as error:
+        raise ConfigurationError(
+            f"tune --node needs ROS 2's rclpy and its messages ({error}); source a ROS 2 "
+            "install (see README 'ROS 2 nodes')"
+        ) from None
+    timeout = NODE_TIMEOUT if args.timeout is None else args.timeout
+    return NodeSweep(args.node, family, loaded[0][0], start, args.node_namespace, timeout)
 
 
 def _record(
@@ -105,7 +150,8 @@ def _record(
         "space": space.record(),
         "samples": args.samples,
         "seed": args.seed if args.samples is not None else None,
-        "chunk": args.chunk,
+        "chunk": 1 if args.node else args.chunk,
+        **({"node": args.node} if args.node else {}),
         "scenes": [bag_location(folder) for folder in args.scene],
         "criteria": list(evaluator.criteria),
         "measures": list(evaluator.measures),
@@ -148,18 +194,29 @@ def run(args: argparse.Namespace) -> int:
     record = _record(args, space, configurations, evaluator)
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
     progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
-    with ResultsStore.create(args.out, record, resume=args.resume) as store:
-        report = run_sweep(
-            store,
-            args.scene,
-            loaded,
-            configurations,
-            evaluator,
-            chunk=args.chunk,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            progress=lambda done, total, r: progress.update(done, total, r.frames),
-        )
+    on_progress = lambda done, total, r: progress.update(done, total, r.frames)  # noqa: E731
+    node: Any = contextlib.nullcontext()
+    if args.node:
+        node = _connect(args, space.family, loaded, configurations[0])
+    with node as sweep, ResultsStore.create(args.out, record, resume=args.resume) as store:
+        if sweep is None:
+            report = run_sweep(
+                store,
+                args.scene,
+                loaded,
+                configurations,
+                evaluator,
+                chunk=args.chunk,
+                jobs=args.jobs,
+                scheduler=args.scheduler,
+                progress=on_progress,
+            )
+        else:
+            from dispeval_ros.ros.tune_node import run_node_sweep
+
+            report = run_node_sweep(
+                sweep, store, args.scene, loaded, configurations, evaluator, progress=on_progress
+            )
         provenance = provenance_record(record, {"files": files_sha256(inputs)})
         store.set_provenance(provenance)
         write_run_files(store, args.out, provenance, args.objective_measures, args.objectives)
@@ -179,6 +236,7 @@ def run(args: argparse.Namespace) -> int:
                 "params_files": [str(p) for p in params],
                 "figures": [str(p) for p in figures],
                 "units": {"done": report.units_done, "skipped": report.units_skipped},
+                "dropped": report.dropped,
             }
         )
         return 0
@@ -227,7 +285,7 @@ def _text(
     report: Any,
 ) -> str:
     """The sweep's summary line, the best configurations with their values, the reading."""
-    from dispeval_ros.offline.tuning.parameters import PARAMETERS
+    from dispeval_ros.testbed.node_parameters import PARAMETERS
 
     swept = [name for name, values in space.axes.items() if len(values) > 1]
     tags = [PARAMETERS[name].short for name in swept]
@@ -249,6 +307,7 @@ def _text(
             f"tune: {plural(len(rows), 'configuration')} of {space.family} on {scenes}; this run: "
             f"{plural(report.units_done, 'unit')} ({report.frames} method-frames)"
             + (f", {report.units_skipped} done before" if report.units_skipped else "")
+            + (f"; node {args.node}: {report.dropped} frame(s) dropped" if args.node else "")
         ),
         wrapped(
             f"A* Groups over {plural(len(objectives), 'objective')}, all minimised; measures "

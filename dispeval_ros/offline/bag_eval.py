@@ -21,6 +21,7 @@ from pathlib import Path
 
 from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.store import RESULTS_FILE, ResultsStore
+from dispeval_ros.io.store.naming import bag_location, sequence_names
 from dispeval_ros.offline.executors import Executor, make_executor
 from dispeval_ros.offline.units import (
     DEFAULT_SLICE_NS,
@@ -55,26 +56,6 @@ MAX_ATTEMPTS = 3
 """How often a unit is tried before it is stored as a problem (a raise or a dead worker)."""
 WINDOW_PER_WORKER = 4
 """Units submitted ahead of the oldest one not yet written, per worker (bounds memory)."""
-
-
-def sequence_names(bags: Sequence[Path]) -> list[str]:
-    """Unique, readable sequence names from bag paths (the stem, suffixed when repeated)."""
-    stems = [(path.stem if path.suffix else path.name) or "bag" for path in bags]
-    seen: Counter[str] = Counter()
-    names = []
-    for stem in stems:
-        seen[stem] += 1
-        names.append(stem if stems.count(stem) == 1 else f"{stem}-{seen[stem]}")
-    return names
-
-
-def bag_location(path: Path) -> str:
-    """How the results database names a bag: its resolved absolute path.
-
-    ``bags/x``, ``./bags/x`` and ``/abs/bags/x`` are one bag, so ``--resume`` from any
-    spelling (or folder) continues the run, and only another bag is refused.
-    """
-    return str(Path(path).resolve())
 
 
 def recorded_bags(out: Path, bags: Sequence[Path], resume: bool) -> list[str]:

@@ -54,6 +54,8 @@ class Param:
     read_only: bool = True
     low: float | None = None
     high: float | None = None
+    step: int = 1
+    """An integer range's step (the values are ``low + k·step``, and ``high``)."""
 
     @property
     def empty_default(self) -> ParamValue:

@@ -350,7 +350,7 @@ def descriptor(param: Param) -> Any:
             ]
         elif param.kind == INTEGER:
             result.integer_range = [
-                IntegerRange(from_value=int(param.low), to_value=int(param.high), step=1)
+                IntegerRange(from_value=int(param.low), to_value=int(param.high), step=param.step)
             ]
     return result
 

@@ -7,6 +7,7 @@ defaults of ``disparity_node.cpp``), not read from the project's table.
 from __future__ import annotations
 
 import itertools
+import sys
 from pathlib import Path
 
 import cv2
@@ -15,8 +16,8 @@ import pytest
 from refusal_support import assert_refused
 
 from dispeval_ros.cli.main import main
-from dispeval_ros.offline.tuning.parameters import params_document
 from dispeval_ros.offline.tuning.space import space_from_document
+from dispeval_ros.testbed.node_parameters import params_document
 
 # stereo_image_proc (ROS 2) disparity node: declared defaults
 SGBM_DEFAULTS = {
@@ -189,6 +190,9 @@ def _good_space(folder: Path) -> Path:
         (["--chunk", "0"], "--chunk must be at least 1"),
         (["--samples", "1"], "--samples must be at least 2"),
         (["--node-name", "a b"], "--node-name must be a ROS node name"),
+        (["--node", "/x", "--jobs", "2"], "--jobs and --scheduler do not apply"),
+        (["--timeout", "1"], "--node-namespace and --timeout apply to --node only"),
+        (["--node", "/x", "--timeout", "0"], "--timeout must be a positive number"),
     ],
 )
 def test_bad_options_are_one_line_and_leave_nothing(
@@ -213,6 +217,21 @@ def test_a_bad_scene_is_one_line_naming_it_and_leaves_nothing(
         ["tune", "--space", str(_good_space(tmp_path)), "--scene", str(scene), "--out", str(out)]
     )
     assert_refused(code, capsys.readouterr().err, str(scene))
+    assert not out.exists()
+
+
+def test_tune_node_without_rclpy_is_one_line_and_leaves_nothing(
+    shared_data: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setitem(sys.modules, "dispeval_ros.ros.tune_node", None)  # import fails
+    out = tmp_path / "out"
+    scene = shared_data / "middeval3-training-Q" / "ArtL"
+    argv = ["--space", str(_good_space(tmp_path)), "--scene", str(scene), "--out", str(out)]
+    code = main(["tune", *argv, "--node", "/disparity_node"])
+    assert_refused(code, capsys.readouterr().err, "tune --node needs ROS 2's rclpy")
     assert not out.exists()
 
 

@@ -19,6 +19,7 @@ from ros_nodes_support import (
     diagnostic_msgs,
     evaluator_node,
     make_publishers,
+    rig_camera_info,
     sensor_msgs,
     statuses,
     stereo_msgs,
@@ -70,19 +71,7 @@ def stamp_of(frame: Any) -> int:
 
 
 def camera_info(frame: Any, right: bool) -> Any:
-    f, baseline = frame.camera.f, frame.camera.baseline
-    cx, cy = frame.principal
-    tx = -f * baseline if right else 0.0
-    return sensor_msgs.CameraInfo(
-        header=convert.header_msg(stamp_of(frame), "stereo_right" if right else CAMERA_FRAME),
-        height=HEIGHT,
-        width=WIDTH,
-        distortion_model="plumb_bob",
-        d=[0.0] * 5,
-        k=np.array([f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0]),
-        r=np.eye(3).reshape(-1),
-        p=np.array([f, 0.0, cx, tx, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
-    )
+    return rig_camera_info(frame, stamp_of(frame), right, CAMERA_FRAME)
 
 
 def disparity(frame: Any, values: np.ndarray) -> Any:

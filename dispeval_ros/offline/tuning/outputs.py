@@ -19,9 +19,9 @@ from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import InputError
 from dispeval_ros.io.store import ResultsStore
-from dispeval_ros.offline.tuning.parameters import params_document
 from dispeval_ros.offline.tuning.space import Configuration, stored_configurations
 from dispeval_ros.summary import objective_table
+from dispeval_ros.testbed.node_parameters import params_document
 
 TABLE_CSV = "tune.csv"
 PARAMS_FOLDER = "params"

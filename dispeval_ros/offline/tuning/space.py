@@ -24,27 +24,17 @@ from typing import Any
 import numpy as np
 
 from dispeval_ros.errors import ConfigurationError, InputError
-from dispeval_ros.offline.tuning.parameters import (
+from dispeval_ros.testbed.node_parameters import (
     PARAMETERS,
+    Configuration,
     check_family,
     check_parameter,
     full_values,
     stereo_method,
 )
-from dispeval_ros.testbed.methods import StereoMethod
 
 MAX_GRID = 100_000
 """The most configurations a whole grid may hold (beyond: sample it with --samples)."""
-
-
-@dataclass(frozen=True)
-class Configuration:
-    """One point of the space: its name, the values of every parameter and its matcher."""
-
-    name: str
-    values: dict[str, int]
-    """Every parameter of the family (the node's defaults where the space sets none)."""
-    method: StereoMethod
 
 
 @dataclass(frozen=True)

@@ -66,6 +66,16 @@ class Parameter:
         return number
 
 
+@dataclass(frozen=True)
+class Configuration:
+    """One point of a parameter space (offline or on a node): name, every value, matcher."""
+
+    name: str
+    values: dict[str, int]
+    """Every parameter of the family (the node's defaults where the space sets none)."""
+    method: StereoMethod
+
+
 PARAMETERS: dict[str, Parameter] = {
     p.name: p
     for p in (
