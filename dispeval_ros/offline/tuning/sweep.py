@@ -49,12 +49,21 @@ class Setup:
 
 @dataclass(frozen=True)
 class TuneUnit:
-    """One sequence (scene folder) and a chunk of configurations."""
+    """One sequence (scene folder) and a chunk of configurations (on some of its frames)."""
 
     scene: int
     sequence: str
     name: str
     configurations: tuple[Configuration, ...]
+    stamps: tuple[int, ...] | None = None
+    """The frames scored (None: every frame; a multi-fidelity round scores only its new ones)."""
+
+    def frames_of(self, frames: Sequence[SceneFrame]) -> list[SceneFrame]:
+        """The unit's frames among the scene's."""
+        if self.stamps is None:
+            return list(frames)
+        wanted = set(self.stamps)
+        return [frame for frame in frames if frame.stamp in wanted]
 
 
 @dataclass
@@ -138,14 +147,25 @@ def sequence_info(folder: Path, frames: Sequence[SceneFrame]) -> dict[str, objec
 
 
 def plan(
-    sequences: Sequence[str], configurations: Sequence[Configuration], chunk: int
+    sequences: Sequence[str],
+    configurations: Sequence[Configuration],
+    chunk: int,
+    stamps: Sequence[Sequence[int]] | None = None,
+    prefix: str = "",
 ) -> list[TuneUnit]:
-    """The units of a sweep: per sequence, consecutive chunks of ``chunk`` configurations."""
+    """The units of a sweep: per sequence, consecutive chunks of ``chunk`` configurations.
+
+    ``stamps``: per sequence, the frames to score (None: all; a sequence with none has no
+    unit); ``prefix`` starts the units' names (a multi-fidelity round's names are its own).
+    """
     units = []
     for index, sequence in enumerate(sequences):
+        chosen = None if stamps is None else tuple(stamps[index])
+        if chosen is not None and not chosen:
+            continue
         for start in range(0, len(configurations), chunk):
             part = tuple(configurations[start : start + chunk])
-            units.append(TuneUnit(index, sequence, f"{start // chunk:06d}", part))
+            units.append(TuneUnit(index, sequence, f"{prefix}{start // chunk:06d}", part, chosen))
     return units
 
 
@@ -166,6 +186,7 @@ class _Worker:
             frames = self.frames[unit.scene] = load_scene(
                 self.setup.scenes[unit.scene], self.evaluator
             )
+        frames = unit.frames_of(frames)
         scored = []
         for frame in frames:
             for configuration in unit.configurations:
@@ -298,6 +319,43 @@ class SweepReport:
     frames: int = 0
 
 
+def set_sequences(
+    store: ResultsStore, scenes: Sequence[Path], loaded: Mapping[int, list[SceneFrame]]
+) -> list[str]:
+    """Name the scenes' sequences and record them (source and frames) in ``store``."""
+    sequences = sequence_names(list(scenes))
+    for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
+        store.set_sequence(sequence, bag_location(folder), sequence_info(folder, loaded[index]))
+    return sequences
+
+
+def run_units(
+    store: ResultsStore,
+    scenes: Sequence[Path],
+    loaded: Mapping[int, list[SceneFrame]],
+    units: Sequence[TuneUnit],
+    evaluator: Evaluator,
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    progress: Callable[[int, int, SweepReport], None] | None = None,
+) -> SweepReport:
+    """Run and write the ``units`` not yet done in ``store`` (in plan order)."""
+    done = {sequence: store.done_units(sequence) for sequence in {u.sequence for u in units}}
+    todo = [unit for unit in units if unit.name not in done[unit.sequence]]
+    report = SweepReport(units_skipped=len(units) - len(todo))
+    # absolute: a Dask worker resolves relative paths against its own folder
+    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
+    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
+    for unit, prepared in zip(todo, outcomes, strict=False):
+        store.add_prepared(prepared)
+        report.units_done += 1
+        report.frames += len(unit.configurations) * len(unit.frames_of(loaded[unit.scene]))
+        if progress is not None:
+            progress(report.units_done, len(todo), report)
+    return report
+
+
 def run_sweep(
     store: ResultsStore,
     scenes: Sequence[Path],
@@ -317,20 +375,8 @@ def run_sweep(
     > 1, or a Dask cluster: ``scheduler`` as ``dispeval bag --scheduler`` takes it) load their
     own.
     """
-    sequences = sequence_names(list(scenes))
-    for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
-        store.set_sequence(sequence, bag_location(folder), sequence_info(folder, loaded[index]))
+    sequences = set_sequences(store, scenes, loaded)
     units = plan(sequences, configurations, chunk)
-    done = {sequence: store.done_units(sequence) for sequence in sequences}
-    todo = [unit for unit in units if unit.name not in done[unit.sequence]]
-    report = SweepReport(units_skipped=len(units) - len(todo))
-    # absolute: a Dask worker resolves relative paths against its own folder
-    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
-    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
-    for unit, prepared in zip(todo, outcomes, strict=False):
-        store.add_prepared(prepared)
-        report.units_done += 1
-        report.frames += len(unit.configurations) * len(loaded[unit.scene])
-        if progress is not None:
-            progress(report.units_done, len(todo), report)
-    return report
+    return run_units(
+        store, scenes, loaded, units, evaluator, jobs=jobs, scheduler=scheduler, progress=progress
+    )
