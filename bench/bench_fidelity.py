@@ -1,6 +1,6 @@
 """``tune --fidelity`` against the full sweep, over seeds: was the full first group kept?
 
-For each seed, ``--samples N --seed S`` configurations of a BM space are swept twice on the
+For each seed, ``--samples N --seed S`` configurations of config/tune_bm.yaml are swept twice on the
 test-bed's synthetic drive (``dispeval make-scene``, written once): in full and with
 ``--fidelity R --keep F``. Prints per seed whether every member of the full sweep's A* group 1
 was kept, whether the final group 1 equals the full one restricted to the kept configurations,
@@ -24,17 +24,8 @@ from bench_scoring import pin_to_one_core
 
 from dispeval_ros.cli.main import main as dispeval
 
-SPACE = """
-family: bm
-parameters:
-  correlation_window_size: [5, 7, 9, 11, 13, 15, 17, 19, 21]
-  uniqueness_ratio: [0, 5, 10, 15, 20]
-  texture_threshold: [0, 10, 20, 40, 80]
-  speckle_size: [0, 50, 100]
-  speckle_range: [2, 4]
-  disparity_range: 48
-"""
-"""The space swept (1 350 configurations; each seed samples --samples of them)."""
+SPACE = Path(__file__).resolve().parents[1] / "config" / "tune_bm.yaml"
+"""The space swept (1 350 BM configurations; each seed samples --samples of them)."""
 
 
 def run(argv: list[str]) -> tuple[dict, float]:
@@ -66,6 +57,12 @@ def main() -> None:
         default="--criteria all",
         help="options given to both sweeps (default '--criteria all': 2 objectives, sze and bmpre on all)",
     )
+    parser.add_argument(
+        "--scene",
+        type=Path,
+        action="append",
+        help="sweep these scene folders instead of the synthetic drive (repeat)",
+    )
     parser.add_argument("--frames", type=int, default=8, help="synthetic frames (default 8)")
     parser.add_argument("--width", type=int, default=320, help="image width (default 320)")
     parser.add_argument("--height", type=int, default=120, help="image height (default 120)")
@@ -73,25 +70,22 @@ def main() -> None:
     pin_to_one_core()
     with tempfile.TemporaryDirectory() as folder:
         root = Path(folder)
-        size = ["--width", str(args.width), "--height", str(args.height)]
-        with redirect_stdout(io.StringIO()):
-            assert (
-                dispeval(["make-scene", str(root / "drive"), "--frames", str(args.frames), *size])
-                == 0
-            )
-        scene = next((root / "drive").glob("*/*_sync"))
-        (root / "space.yaml").write_text(SPACE)
-        common = [
-            "--space",
-            str(root / "space.yaml"),
-            "--scene",
-            str(scene),
-            *args.tune_options.split(),
-        ]
+        if args.scene:
+            scenes = [str(s) for s in args.scene]
+            data = f"{len(scenes)} scenes ({', '.join(s.name for s in args.scene)})"
+        else:
+            size = ["--width", str(args.width), "--height", str(args.height)]
+            drive = ["make-scene", str(root / "drive"), "--frames", str(args.frames), *size]
+            with redirect_stdout(io.StringIO()):
+                assert dispeval(drive) == 0
+            scenes = [str(next((root / "drive").glob("*/*_sync")))]
+            data = f"the synthetic drive, {args.frames} frames of {args.width}×{args.height}"
+        common = ["--space", str(SPACE), *args.tune_options.split()]
+        common += [a for scene in scenes for a in ("--scene", scene)]
         held = equal = 0
         fractions, ratios = [], []
         print(
-            f"{args.samples} BM configurations, {args.frames} frames {args.width}×{args.height}, "
+            f"{args.samples} BM configurations on {data}, "
             f"--fidelity {args.fidelity} --keep {args.keep} {args.tune_options}"
         )
         print(

@@ -31,16 +31,7 @@ from dispeval_ros.offline.tuning.fidelity import keep_whole_groups, round_stamps
 
 pytestmark = pytest.mark.slow
 
-SPACE = """
-family: bm
-parameters:
-  correlation_window_size: [5, 7, 9, 11, 13, 15, 17, 19, 21]
-  uniqueness_ratio: [0, 5, 10, 15, 20]
-  texture_threshold: [0, 10, 20, 40, 80]
-  speckle_size: [0, 50, 100]
-  speckle_range: [2, 4]
-  disparity_range: 48
-"""
+SPACE = Path(__file__).resolve().parents[2] / "config" / "tune_bm.yaml"  # 1 350 configurations
 FRAMES = 8
 ROUND_FRAMES = (2, 4, 8)  # ⌈8·2^(r−3)⌉
 
@@ -62,8 +53,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
         assert main(["make-scene", str(drive), "--frames", str(FRAMES), "--width", "320",
                      "--height", "120"]) == 0  # fmt: skip
     scene = next(drive.glob("*/*_sync"))
-    (root / "space.yaml").write_text(SPACE)
-    argv = ["--space", str(root / "space.yaml"), "--scene", str(scene), "--samples", "200",
+    argv = ["--space", str(SPACE), "--scene", str(scene), "--samples", "200",
             "--seed", "3", "--criteria", "all"]  # fmt: skip
     multi = [*argv, "--fidelity", "3"]
     return {
@@ -262,3 +252,10 @@ def test_resume_with_other_rounds_is_refused(
     code = main(["tune", *runs["argv"], "--fidelity", "2", "--out", str(out), "--resume"])
     assert_refused(code, capsys.readouterr().err, "fidelity")
     assert dump(out) == before
+
+
+def test_two_worker_processes_give_the_same_database(runs: dict) -> None:
+    out = runs["root"] / "jobs2"
+    doc = run_json(*runs["multi"], "--out", str(out), "--jobs", "2")
+    assert dump(out) == dump(runs["root"] / "multi")
+    assert doc["models"] == runs["fidelity"]["models"]
