@@ -298,6 +298,7 @@ def run_fidelity(
         if not last:
             methods, _, matrix = objective_table(view, measures, granularity)
             kept = keep_whole_groups(evaluate_models(methods, matrix).groups, methods, keep)
+        chosen = set(kept)
         reports.append(
             RoundReport(
                 number,
@@ -309,10 +310,9 @@ def run_fidelity(
                 done.units_done,
                 done.units_skipped,
                 done.frames,
-                [name for name in names if name not in set(kept)],
+                [name for name in names if name not in chosen],
             )
         )
-        chosen = set(kept)
         survivors = [c for c in survivors if c.name in chosen]
         previous = [set(s) for s in stamps]
     assert view is not None  # at least two rounds (the options' check)
