@@ -259,3 +259,47 @@ def test_two_worker_processes_give_the_same_database(runs: dict) -> None:
     doc = run_json(*runs["multi"], "--out", str(out), "--jobs", "2")
     assert dump(out) == dump(runs["root"] / "multi")
     assert doc["models"] == runs["fidelity"]["models"]
+
+
+def _units_stored(folder: Path) -> int:
+    try:
+        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
+    except sqlite3.Error:
+        return 0
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.Error:
+        return 0
+    finally:
+        db.close()
+
+
+def test_a_run_killed_in_round_2_resumed_gives_the_same_database(runs: dict) -> None:
+    """SIGKILL (one configuration a unit) after round 1's 200 units: same rows, same cuts."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    argv = [*runs["multi"], "--chunk", "1"]
+    whole, killed = runs["root"] / "chunk1", runs["root"] / "killed"
+    reference = run_json(*argv, "--out", str(whole))
+    command = [sys.executable, "-m", "dispeval_ros", "tune", *argv, "--out", str(killed)]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while _units_stored(killed) < 205 and process.poll() is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.005)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        process.wait()
+    stored = _units_stored(killed)
+    rounds = reference["fidelity"]["rounds"]
+    assert 205 <= stored < 200 + rounds[1]["configurations"], stored  # killed in round 2
+    resumed = run_json(*argv, "--out", str(killed), "--resume")
+    assert resumed["units"]["skipped"] == stored
+    assert dump(killed) == dump(whole)
+    assert [r["cut"] for r in resumed["fidelity"]["rounds"]] == [r["cut"] for r in rounds]
+    assert resumed["models"] == reference["models"]
