@@ -303,3 +303,11 @@ def test_a_run_killed_in_round_2_resumed_gives_the_same_database(runs: dict) -> 
     assert dump(killed) == dump(whole)
     assert [r["cut"] for r in resumed["fidelity"]["rounds"]] == [r["cut"] for r in rounds]
     assert resumed["models"] == reference["models"]
+
+
+def test_a_local_dask_cluster_gives_the_same_database(runs: dict) -> None:
+    pytest.importorskip("distributed")
+    out = runs["root"] / "dask"
+    doc = run_json(*runs["multi"], "--out", str(out), "--scheduler", "local:2")
+    assert dump(out) == dump(runs["root"] / "multi")
+    assert doc["models"] == runs["fidelity"]["models"]
