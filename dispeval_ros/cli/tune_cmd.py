@@ -11,6 +11,7 @@ from dispeval_ros.cli import common
 from dispeval_ros.cli.output import plural, print_json, table, wrapped
 from dispeval_ros.cli.progress import Progress
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.offline.tuning.fidelity import DEFAULT_KEEP
 from dispeval_ros.offline.tuning.sweep import DEFAULT_CHUNK
 from dispeval_ros.stream.tuning import NODE_TIMEOUT
 from dispeval_ros.testbed.node_parameters import DEFAULT_NODE_NAME
@@ -72,6 +73,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=f"configurations per unit of work (default {DEFAULT_CHUNK})",
     )
     parser.add_argument(
+        "--fidelity",
+        type=int,
+        metavar="R",
+        help="multi-fidelity in R ≥ 2 rounds: round r scores the surviving configurations on "
+        "the first ⌈N·2^(r−R)⌉ of the scenes' N frames (frame 0 of every scene, then frame 1, "
+        "…; the last round all), keeps whole A* groups from group 1 on until --keep of them is "
+        "kept; the models are those of the configurations of the last round",
+    )
+    parser.add_argument(
+        "--keep",
+        type=float,
+        metavar="F",
+        help=f"with --fidelity: the fraction of a round's configurations kept at least, in whole "
+        f"A* groups (default {DEFAULT_KEEP})",
+    )
+    parser.add_argument(
         "--resume", action="store_true", help="continue an interrupted run in --out"
     )
     parser.add_argument(
@@ -118,10 +135,23 @@ def _check_numbers(args: argparse.Namespace) -> None:
             raise ConfigurationError("--node-namespace and --timeout apply to --node only")
     elif args.jobs != 1 or args.scheduler is not None:
         raise ConfigurationError("--node drives one node: --jobs and --scheduler do not apply")
+    elif args.fidelity is not None:
+        raise ConfigurationError("--fidelity rounds are for the offline sweep, not --node")
     if args.timeout is not None and not args.timeout > 0:
         raise ConfigurationError(
             f"--timeout must be a positive number of seconds, got {args.timeout}"
         )
+    if args.fidelity is not None and args.fidelity < 2:
+        raise ConfigurationError(
+            f"--fidelity must be at least 2 rounds, got {args.fidelity} (one round is the full "
+            "sweep: leave --fidelity out)"
+        )
+    if args.keep is not None and args.fidelity is None:
+        raise ConfigurationError(
+            "--keep is the fraction kept by --fidelity rounds; give --fidelity R"
+        )
+    if args.keep is not None and not 0 < args.keep < 1:
+        raise ConfigurationError(f"--keep must be a fraction between 0 and 1, got {args.keep}")
     if not args.node_name or any(c in args.node_name for c in " \t\n:"):
         raise ConfigurationError(f"--node-name must be a ROS node name, got {args.node_name!r}")
 
@@ -160,7 +190,12 @@ def _record(
         "mu": evaluator.mu,
         "depth_ranges": args.depth_ranges,
         "configurations": {c.name: c.values for c in configurations},
+        **({"fidelity": args.fidelity, "keep": _keep(args)} if args.fidelity is not None else {}),
     }
+
+
+def _keep(args: argparse.Namespace) -> float:
+    return DEFAULT_KEEP if args.keep is None else args.keep
 
 
 def run(args: argparse.Namespace) -> int:
@@ -168,12 +203,14 @@ def run(args: argparse.Namespace) -> int:
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.provenance import provenance_record
     from dispeval_ros.io import list_frames
+    from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.provenance import files_sha256
-    from dispeval_ros.io.store import ResultsStore
+    from dispeval_ros.io.store import SUMMARY_JSON, ResultsStore
     from dispeval_ros.offline.records import write_run_files
+    from dispeval_ros.offline.tuning.fidelity import RoundView, round_stamps, run_fidelity
     from dispeval_ros.offline.tuning.outputs import stored_sweep, write_params_files, write_table
     from dispeval_ros.offline.tuning.space import read_space
-    from dispeval_ros.offline.tuning.sweep import check_fits, load_scene, run_sweep
+    from dispeval_ros.offline.tuning.sweep import SweepReport, check_fits, load_scene, run_sweep
 
     _check_numbers(args)
     space = read_space(args.space)
@@ -191,36 +228,55 @@ def run(args: argparse.Namespace) -> int:
         )
     loaded = {i: load_scene(f, evaluator, listed[i]) for i, f in enumerate(args.scene)}
     check_fits(configurations, args.scene, loaded)
+    if args.fidelity is not None:  # too few frames: refused before anything is written
+        round_stamps([len(loaded[i]) for i in range(len(args.scene))], args.fidelity)
     record = _record(args, space, configurations, evaluator)
     inputs = [path for frames in loaded.values() for frame in frames for path in frame.files]
     progress = Progress("dispeval tune", enabled=not args.quiet, unit="units")
-    on_progress = lambda done, total, r: progress.update(done, total, r.frames)  # noqa: E731
+
+    def update(done: int, total: int, report: SweepReport) -> None:
+        progress.update(done, total, report.frames)
+
+    engine = {"chunk": args.chunk, "jobs": args.jobs, "scheduler": args.scheduler}
+    fidelity = None
     node: Any = contextlib.nullcontext()
     if args.node:
         node = _connect(args, space.family, loaded, configurations[0])
     with node as sweep, ResultsStore.create(args.out, record, resume=args.resume) as store:
-        if sweep is None:
+        source: ResultsStore | RoundView = store
+        if sweep is not None:
+            from dispeval_ros.ros.tune_node import run_node_sweep
+
+            report = run_node_sweep(
+                sweep, store, args.scene, loaded, configurations, evaluator, progress=update
+            )
+        elif args.fidelity is None:
             report = run_sweep(
+                store, args.scene, loaded, configurations, evaluator, **engine, progress=update
+            )
+        else:
+            fidelity = run_fidelity(
                 store,
                 args.scene,
                 loaded,
                 configurations,
                 evaluator,
-                chunk=args.chunk,
-                jobs=args.jobs,
-                scheduler=args.scheduler,
-                progress=on_progress,
+                args.fidelity,
+                _keep(args),
+                measures=args.objective_measures,
+                granularity=args.objectives,
+                **engine,
+                progress=update,
             )
-        else:
-            from dispeval_ros.ros.tune_node import run_node_sweep
-
-            report = run_node_sweep(
-                sweep, store, args.scene, loaded, configurations, evaluator, progress=on_progress
-            )
+            report, source = fidelity.sweep_report(), fidelity.view
         provenance = provenance_record(record, {"files": files_sha256(inputs)})
         store.set_provenance(provenance)
-        write_run_files(store, args.out, provenance, args.objective_measures, args.objectives)
-        result = stored_sweep(store, args.objective_measures, args.objectives)
+        files = write_run_files(
+            source, args.out, provenance, args.objective_measures, args.objectives
+        )
+        if fidelity is not None:
+            write_json(args.out / SUMMARY_JSON, {**files.document, "fidelity": fidelity.to_dict()})
+        result = stored_sweep(source, args.objective_measures, args.objectives)
     assert result is not None  # a tune database: its record holds the configurations
     rows, models, objectives = result.rows, result.models, result.objectives
     table_file = write_table(args.out, rows)
@@ -237,10 +293,13 @@ def run(args: argparse.Namespace) -> int:
                 "figures": [str(p) for p in figures],
                 "units": {"done": report.units_done, "skipped": report.units_skipped},
                 "dropped": report.dropped,
+                **({"fidelity": fidelity.to_dict()} if fidelity is not None else {}),
             }
         )
         return 0
     print(_text(args, space, rows, objectives, models, report))
+    if fidelity is not None:
+        print("\n" + _fidelity_text(fidelity))
     print(f"\ntable: {table_file}")
     folder = params[0].parent if params else args.out
     print(
@@ -321,3 +380,35 @@ def _text(
         wrapped(models.interpretation),
     ]
     return "\n".join(lines)
+
+
+def _fidelity_text(fidelity: Any) -> str:
+    """The rounds: frames, configurations scored and kept, compute against a full sweep's."""
+    header = ["round", "frames", "scored", "kept", "config-frames", "seconds"]
+    body = [
+        [r.round, r.frames, r.configurations, r.kept, r.configuration_frames, f"{r.seconds:.1f}"]
+        for r in fidelity.rounds
+    ]
+    full = fidelity.full_seconds()
+    seconds = sum(r.seconds for r in fidelity.rounds)
+    estimate = (
+        f"; {seconds:.1f} s measured in this run against ≈ {full:.1f} s for the full sweep at "
+        "this run's rate"
+        if full is not None
+        else ""
+    )
+    first = fidelity.rounds[0]
+    return "\n".join(
+        [
+            wrapped(
+                f"multi-fidelity: {plural(first.configurations, 'configuration')} in "
+                f"{len(fidelity.rounds)} rounds, whole A* groups kept; the models above are those "
+                f"of the {len(fidelity.kept)} of the last round, on every frame"
+            ),
+            table(header, body),
+            wrapped(
+                f"compute: {fidelity.configuration_frames} configuration-frames of the full "
+                f"sweep's {fidelity.full_configuration_frames} ({fidelity.fraction:.1%})" + estimate
+            ),
+        ]
+    )

@@ -12,7 +12,7 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from dispeval_ros.core.provenance import provenance_record
 from dispeval_ros.core.records import FrameScores, MatchCounts
@@ -23,7 +23,7 @@ from dispeval_ros.io.store import FRAMES_CSV, RESULTS_FILE, SUMMARY_JSON, TIMING
 from dispeval_ros.offline.bag_eval import sequence_names
 from dispeval_ros.offline.units import open_bag
 from dispeval_ros.stream.core import CoreConfig
-from dispeval_ros.summary import RunSummary, summarize
+from dispeval_ros.summary import RunSummary, ScoreSource, summarize
 
 
 def stream_topics(config: CoreConfig) -> list[str]:
@@ -100,8 +100,14 @@ class RunFiles:
     document: dict[str, Any]
 
 
+class RunSource(ScoreSource, Protocol):
+    """What the run's files are written from: a database, or a view of it (tune rounds)."""
+
+    def export_csv(self, path: Path) -> int: ...  # noqa: D102
+
+
 def write_run_files(
-    store: ResultsStore,
+    store: RunSource,
     folder: Path,
     provenance: Mapping[str, object],
     measures: Sequence[str] | None = None,

@@ -30,12 +30,21 @@ NODE_TIMEOUT = 5.0
 
 @dataclass(frozen=True)
 class TuneUnit:
-    """One sequence (scene folder) and a chunk of configurations."""
+    """One sequence (scene folder) and a chunk of configurations (on some of its frames)."""
 
     scene: int
     sequence: str
     name: str
     configurations: tuple[Configuration, ...]
+    stamps: tuple[int, ...] | None = None
+    """The frames scored (None: every frame; a multi-fidelity round scores only its new ones)."""
+
+    def frames_of(self, frames: Sequence[SceneFrame]) -> list[SceneFrame]:
+        """The unit's frames among the scene's."""
+        if self.stamps is None:
+            return list(frames)
+        wanted = set(self.stamps)
+        return [frame for frame in frames if frame.stamp in wanted]
 
 
 @dataclass
@@ -125,14 +134,25 @@ def sequence_info(folder: Path, frames: Sequence[SceneFrame]) -> dict[str, objec
 
 
 def plan(
-    sequences: Sequence[str], configurations: Sequence[Configuration], chunk: int
+    sequences: Sequence[str],
+    configurations: Sequence[Configuration],
+    chunk: int,
+    stamps: Sequence[Sequence[int]] | None = None,
+    prefix: str = "",
 ) -> list[TuneUnit]:
-    """The units of a sweep: per sequence, consecutive chunks of ``chunk`` configurations."""
+    """The units of a sweep: per sequence, consecutive chunks of ``chunk`` configurations.
+
+    ``stamps``: per sequence, the frames to score (None: all; a sequence with none has no
+    unit); ``prefix`` starts the units' names (a multi-fidelity round's names are its own).
+    """
     units = []
     for index, sequence in enumerate(sequences):
+        chosen = None if stamps is None else tuple(stamps[index])
+        if chosen is not None and not chosen:
+            continue
         for start in range(0, len(configurations), chunk):
             part = tuple(configurations[start : start + chunk])
-            units.append(TuneUnit(index, sequence, f"{start // chunk:06d}", part))
+            units.append(TuneUnit(index, sequence, f"{prefix}{start // chunk:06d}", part, chosen))
     return units
 
 
@@ -147,6 +167,16 @@ class SweepReport:
     """Frames a node sent no map of in time (``tune --node``; counted, not scored)."""
 
 
+def set_sequences(
+    store: ResultsStore, scenes: Sequence[Path], loaded: Mapping[int, list[SceneFrame]]
+) -> list[str]:
+    """Name the scenes' sequences and record them (source and frames) in ``store``."""
+    sequences = sequence_names(list(scenes))
+    for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
+        store.set_sequence(sequence, bag_location(folder), sequence_info(folder, loaded[index]))
+    return sequences
+
+
 def start_sweep(
     store: ResultsStore,
     scenes: Sequence[Path],
@@ -155,9 +185,7 @@ def start_sweep(
     chunk: int,
 ) -> tuple[list[TuneUnit], SweepReport]:
     """Record the sequences in ``store``; the units still to do and a report counting the rest."""
-    sequences = sequence_names(list(scenes))
-    for index, (folder, sequence) in enumerate(zip(scenes, sequences, strict=True)):
-        store.set_sequence(sequence, bag_location(folder), sequence_info(folder, loaded[index]))
+    sequences = set_sequences(store, scenes, loaded)
     units = plan(sequences, configurations, chunk)
     done = {sequence: store.done_units(sequence) for sequence in sequences}
     todo = [unit for unit in units if unit.name not in done[unit.sequence]]

@@ -14,13 +14,13 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.objectives import default_objective_measures
 from dispeval_ros.errors import InputError
-from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.offline.tuning.space import Configuration, stored_configurations
-from dispeval_ros.summary import objective_table
+from dispeval_ros.summary import ScoreSource, objective_table
 from dispeval_ros.testbed.node_parameters import params_document
 
 TABLE_CSV = "tune.csv"
@@ -76,6 +76,12 @@ def tune_rows(
     return rows
 
 
+class SweepSource(ScoreSource, Protocol):
+    """A database, or a multi-fidelity run's view of its last round: scores and the record."""
+
+    def config(self) -> Mapping[str, Any]: ...  # noqa: D102
+
+
 @dataclass(frozen=True)
 class SweepResult:
     """A sweep's database read back: its configurations ranked, the models, the objectives."""
@@ -86,11 +92,12 @@ class SweepResult:
 
 
 def stored_sweep(
-    store: ResultsStore, measures: Sequence[str] | None = None, granularity: str = "sequence"
+    store: SweepSource, measures: Sequence[str] | None = None, granularity: str = "sequence"
 ) -> SweepResult | None:
     """The rows, models and objectives of a ``dispeval tune`` database (None: not one).
 
-    The models as ``dispeval models`` makes them from the stored frames (``measures``,
+    ``store``: the database, or a multi-fidelity run's view of its last round. The models as
+    ``dispeval models`` makes them from the stored frames (``measures``,
     ``granularity``: the objectives; default SZE and BMPRE); beside the parameters, each
     objective measure over every scene on the first stored criterion (``all`` by default).
     """

@@ -31,11 +31,22 @@ from dispeval_ros.stream.tuning import (
     TuneUnit,
     check_fits,
     load_scene,
-    start_sweep,
+    plan,
+    set_sequences,
 )
 from dispeval_ros.testbed.node_parameters import Configuration
 
-__all__ = ["DEFAULT_CHUNK", "check_fits", "load_scene", "run_sweep"]
+__all__ = [
+    "DEFAULT_CHUNK",
+    "SceneFrame",
+    "SweepReport",
+    "check_fits",
+    "load_scene",
+    "plan",
+    "run_sweep",
+    "run_units",
+    "set_sequences",
+]
 
 DEFAULT_CHUNK = 8
 """Configurations per unit of work (stored with the run: a resume cuts the same units)."""
@@ -75,6 +86,7 @@ class _Worker:
             frames = self.frames[unit.scene] = load_scene(
                 self.setup.scenes[unit.scene], self.evaluator
             )
+        frames = unit.frames_of(frames)
         scored = []
         for frame in frames:
             for configuration in unit.configurations:
@@ -217,6 +229,31 @@ def _on_dask(setup: Setup, units: Sequence[TuneUnit], scheduler: str) -> Iterato
         disconnect(client, cluster)
 
 
+def run_units(
+    store: ResultsStore,
+    scenes: Sequence[Path],
+    loaded: Mapping[int, list[SceneFrame]],
+    units: Sequence[TuneUnit],
+    evaluator: Evaluator,
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    progress: Callable[[int, int, SweepReport], None] | None = None,
+) -> SweepReport:
+    """Run and write the ``units`` not yet done in ``store`` (in plan order)."""
+    done = {sequence: store.done_units(sequence) for sequence in {u.sequence for u in units}}
+    todo = [unit for unit in units if unit.name not in done[unit.sequence]]
+    report = SweepReport(units_skipped=len(units) - len(todo))
+    # absolute: a Dask worker resolves relative paths against its own folder
+    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
+    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
+    for unit, prepared in zip(todo, outcomes, strict=False):
+        store.add_prepared(prepared)
+        report.units_done += 1
+        report.frames += len(unit.configurations) * len(unit.frames_of(loaded[unit.scene]))
+        if progress is not None:
+            progress(report.units_done, len(todo), report)
+    return report
 def run_sweep(
     store: ResultsStore,
     scenes: Sequence[Path],
@@ -236,14 +273,8 @@ def run_sweep(
     > 1, or a Dask cluster: ``scheduler`` as ``dispeval bag --scheduler`` takes it) load their
     own.
     """
-    todo, report = start_sweep(store, scenes, loaded, configurations, chunk)
-    # absolute: a Dask worker resolves relative paths against its own folder
-    setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
-    outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
-    for unit, prepared in zip(todo, outcomes, strict=False):
-        store.add_prepared(prepared)
-        report.units_done += 1
-        report.frames += len(unit.configurations) * len(loaded[unit.scene])
-        if progress is not None:
-            progress(report.units_done, len(todo), report)
-    return report
+    sequences = set_sequences(store, scenes, loaded)
+    units = plan(sequences, configurations, chunk)
+    return run_units(
+        store, scenes, loaded, units, evaluator, jobs=jobs, scheduler=scheduler, progress=progress
+    )
