@@ -180,6 +180,32 @@ def matched(pubs: dict[str, Any], topics: list[str]) -> Callable[[], bool]:
     return lambda: all(pubs[topic].get_subscription_count() > 0 for topic in topics)
 
 
+def feed_node_and_core(
+    ros: Ros, topics: Topics, node: Any, frames: int
+) -> tuple[list[Any], list[FrameResult]]:
+    """Publish the camera infos and ``frames`` frames to ``node``; its scores arrays, and what
+    a core of its configuration fed the same messages gives (pairs and windows included)."""
+    pubs = publishers(ros, topics)
+    scores = ros.collect(
+        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
+    )
+    assert ros.spin_until(matched(pubs, list(pubs)))
+    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
+    core = EvaluationCore(node.config)
+    for topic, right in ((topics.left, False), (topics.right, True)):
+        msg = camera_info_msg(START_NS, right)
+        pubs[topic].publish(msg)
+        core.push(topic, msg)
+    assert ros.spin_until(lambda: node._live.core.camera() is not None)
+    expected: list[FrameResult] = []
+    for k in range(frames):
+        for topic, msg in frame_messages(topics, k):
+            pubs[topic].publish(msg)
+            expected += [core.window(core.pair(core.score(s))) for s in core.push(topic, msg)]
+        assert ros.spin_until(lambda k=k: len(scores) == k + 1), f"no scores for frame {k}"
+    return scores, expected
+
+
 def scores_once_matched(ros: Ros, node: Any, pubs: dict[str, Any], topics: list[str]) -> list[Any]:
     """The node's ``/dispeval/scores`` as they arrive, collected once ``topics``' publishers
     and the collector are matched with the node."""

@@ -28,3 +28,17 @@ def dump(directory: Path) -> dict[str, object]:
         return content
     finally:
         db.close()
+
+
+def units_stored(folder: Path) -> int:
+    """How many units a (possibly running, or killed) run has written; 0 before its database."""
+    try:
+        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
+    except sqlite3.Error:
+        return 0
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+    except sqlite3.Error:
+        return 0
+    finally:
+        db.close()

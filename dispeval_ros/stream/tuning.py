@@ -186,7 +186,13 @@ def start_sweep(
 ) -> tuple[list[TuneUnit], SweepReport]:
     """Record the sequences in ``store``; the units still to do and a report counting the rest."""
     sequences = set_sequences(store, scenes, loaded)
-    units = plan(sequences, configurations, chunk)
-    done = {sequence: store.done_units(sequence) for sequence in sequences}
+    return units_to_do(store, plan(sequences, configurations, chunk))
+
+
+def units_to_do(
+    store: ResultsStore, units: Sequence[TuneUnit]
+) -> tuple[list[TuneUnit], SweepReport]:
+    """The ``units`` not done in ``store`` yet (in plan order), and a report counting the rest."""
+    done = {sequence: store.done_units(sequence) for sequence in {u.sequence for u in units}}
     todo = [unit for unit in units if unit.name not in done[unit.sequence]]
     return todo, SweepReport(units_skipped=len(units) - len(todo))

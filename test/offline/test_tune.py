@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from store_support import dump
+from store_support import dump, units_stored
 
 from dispeval_ros.cli import tune_cmd
 from dispeval_ros.cli.main import main
@@ -337,19 +337,6 @@ def test_a_local_dask_cluster_gives_the_same_database(
     assert dump(out) == dump(sweep["out"])
 
 
-def _units_stored(folder: Path) -> int:
-    try:
-        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
-    except sqlite3.Error:
-        return 0
-    try:
-        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
-    except sqlite3.Error:
-        return 0
-    finally:
-        db.close()
-
-
 def test_resume_after_a_kill_gives_the_same_database(
     sweep: dict, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -368,13 +355,13 @@ def test_resume_after_a_kill_gives_the_same_database(
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
-        while _units_stored(killed) < 3 and process.poll() is None:
+        while units_stored(killed) < 3 and process.poll() is None:
             assert time.monotonic() < deadline
             time.sleep(0.01)
         os.kill(process.pid, signal.SIGKILL)
     finally:
         process.wait()
-    stored = _units_stored(killed)
+    stored = units_stored(killed)
     assert 3 <= stored < 36, stored  # killed mid-sweep
     code, text, err = tune(capsys, *argv, "--out", str(killed), "--resume")
     assert code == 0, err

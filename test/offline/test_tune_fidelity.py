@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from refusal_support import assert_refused
-from store_support import dump
+from store_support import dump, units_stored
 
 from dispeval_ros.cli import tune_cmd
 from dispeval_ros.cli.main import main
@@ -261,19 +261,6 @@ def test_two_worker_processes_give_the_same_database(runs: dict) -> None:
     assert doc["models"] == runs["fidelity"]["models"]
 
 
-def _units_stored(folder: Path) -> int:
-    try:
-        db = sqlite3.connect(f"file:{folder / RESULTS_FILE}?mode=ro", uri=True)
-    except sqlite3.Error:
-        return 0
-    try:
-        return int(db.execute("SELECT COUNT(*) FROM units").fetchone()[0])
-    except sqlite3.Error:
-        return 0
-    finally:
-        db.close()
-
-
 def test_a_run_killed_in_round_2_resumed_gives_the_same_database(runs: dict) -> None:
     """SIGKILL (one configuration a unit) after round 1's 200 units: same rows, same cuts."""
     import os
@@ -289,13 +276,13 @@ def test_a_run_killed_in_round_2_resumed_gives_the_same_database(runs: dict) -> 
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 120
-        while _units_stored(killed) < 205 and process.poll() is None:
+        while units_stored(killed) < 205 and process.poll() is None:
             assert time.monotonic() < deadline
             time.sleep(0.005)
         os.kill(process.pid, signal.SIGKILL)
     finally:
         process.wait()
-    stored = _units_stored(killed)
+    stored = units_stored(killed)
     rounds = reference["fidelity"]["rounds"]
     assert 205 <= stored < 200 + rounds[1]["configurations"], stored  # killed in round 2
     resumed = run_json(*argv, "--out", str(killed), "--resume")

@@ -13,10 +13,8 @@ from ros_nodes_support import (
     Topics,
     camera_info_msg,
     diagnostic_msgs,
-    evaluator_node,
+    feed_node_and_core,
     frame_messages,
-    matched,
-    publishers,
     statuses,
     summarizer_node,
 )
@@ -38,24 +36,7 @@ def test_the_scores_statuses_carry_the_cores_windows(ros: Ros) -> None:
         flicker=2,
     )
     assert node.config.flicker == 2
-    pubs = publishers(ros, topics)
-    scores = ros.collect(
-        diagnostic_msgs.DiagnosticArray, "/dispeval/scores", evaluator_node.RESULTS_QOS
-    )
-    assert ros.spin_until(matched(pubs, list(pubs)))
-    assert ros.spin_until(lambda: node._scores_pub.get_subscription_count() > 0)
-    core = EvaluationCore(node.config)
-    for topic, right in ((topics.left, False), (topics.right, True)):
-        msg = camera_info_msg(START_NS, right)
-        pubs[topic].publish(msg)
-        core.push(topic, msg)
-    assert ros.spin_until(lambda: node._live.core.camera() is not None)
-    expected: list[FrameResult] = []
-    for k in range(4):
-        for topic, msg in frame_messages(topics, k):
-            pubs[topic].publish(msg)
-            expected += [core.window(core.pair(core.score(s))) for s in core.push(topic, msg)]
-        assert ros.spin_until(lambda k=k: len(scores) == k + 1), f"no scores for frame {k}"
+    scores, expected = feed_node_and_core(ros, topics, node, 4)
     assert [len(r.flicker) for r in expected] == [0, 2, 0, 2]
     for array, result in zip(scores, expected, strict=True):
         got = statuses(array)

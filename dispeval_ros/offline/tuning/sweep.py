@@ -33,6 +33,7 @@ from dispeval_ros.stream.tuning import (
     load_scene,
     plan,
     set_sequences,
+    units_to_do,
 )
 from dispeval_ros.testbed.node_parameters import Configuration
 
@@ -241,9 +242,7 @@ def run_units(
     progress: Callable[[int, int, SweepReport], None] | None = None,
 ) -> SweepReport:
     """Run and write the ``units`` not yet done in ``store`` (in plan order)."""
-    done = {sequence: store.done_units(sequence) for sequence in {u.sequence for u in units}}
-    todo = [unit for unit in units if unit.name not in done[unit.sequence]]
-    report = SweepReport(units_skipped=len(units) - len(todo))
+    todo, report = units_to_do(store, units)
     # absolute: a Dask worker resolves relative paths against its own folder
     setup = Setup(tuple(Path(s).absolute() for s in scenes), evaluator_settings(evaluator))
     outcomes = _outcomes(setup, todo, jobs, loaded, scheduler)
