@@ -47,8 +47,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         required=True,
         metavar="DIR",
-        help="a dataset scene folder (images, GT, masks, camera); repeat for several: each is "
-        "one sequence",
+        help="a dataset scene folder (images, GT, masks, camera), or a dataset tree (every scene "
+        "folder in it); repeat for several: each scene is one sequence",
     )
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="results folder")
     parser.add_argument(
@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     """Check everything, sweep, rank, write the table and the parameters files, print."""
     from dispeval_ros.core.objectives import default_objective_measures
     from dispeval_ros.core.provenance import provenance_record
-    from dispeval_ros.io import list_frames
+    from dispeval_ros.io import list_frames, scene_folders
     from dispeval_ros.io.jsonio import write_json
     from dispeval_ros.io.provenance import files_sha256
     from dispeval_ros.io.store import SUMMARY_JSON, ResultsStore
@@ -215,6 +215,7 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     space = read_space(args.space)
     configurations = space.configurations(args.samples, args.seed)
+    args.scene = list(dict.fromkeys(f for given in args.scene for f in scene_folders(given)))
     listed = [list_frames(folder) for folder in args.scene]
     for frames in listed:  # scored as eval --scene scores them
         common.scene_defaults(args, frames[0].layout)

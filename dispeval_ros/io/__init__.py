@@ -44,6 +44,7 @@ __getattr__, __dir__ = lazy_exports(
             "Scene",
             "list_frames",
             "load_scene",
+            "scene_folders",
         ),
         "dispeval_ros.io.store": (
             "FrameScores",
@@ -91,7 +92,7 @@ if TYPE_CHECKING:
         image_from_msg,
         stamp_ns,
     )
-    from dispeval_ros.io.scenes import Scene, list_frames, load_scene
+    from dispeval_ros.io.scenes import Scene, list_frames, load_scene, scene_folders
     from dispeval_ros.io.store import FrameScores, MatchCounts, Problem, ResultsStore
     from dispeval_ros.io.tables import read_objectives_csv, write_objectives_csv
     from dispeval_ros.io.tf_messages import add_tf_message, odometry_from_msg, transforms_from_msg
@@ -128,6 +129,7 @@ __all__ = [
     "read_stereo_pair",
     "read_velodyne_bin",
     "require_topic",
+    "scene_folders",
     "stamp_ns",
     "transforms_from_msg",
     "write_disparity_png16",

@@ -549,6 +549,31 @@ def _frames(folder: Path) -> list[Callable[[], Scene]]:
     )
 
 
+def scene_folders(path: PathLike) -> list[Path]:
+    """``path`` if it is a scene folder, else the scene folders in it (a dataset tree), sorted.
+
+    A folder that is neither is its own :class:`LayoutError` (one line naming what was looked
+    for); a subfolder that is not a scene is passed over.
+    """
+    folder = _folder(path)
+    try:
+        _frames(folder)
+    except LayoutError as error:
+        scenes = [child for child in sorted(folder.iterdir()) if child.is_dir() and _is_scene(child)]
+        if not scenes:
+            raise LayoutError(f"{error} (nor a dataset tree: no scene folder in it)") from None
+        return scenes
+    return [folder]
+
+
+def _is_scene(folder: Path) -> bool:
+    try:
+        _frames(folder)
+    except LayoutError:
+        return False
+    return True
+
+
 def load_scene(path: PathLike) -> Scene:
     """Load the scene in folder ``path``, recognising its layout by its files.
 

@@ -409,3 +409,34 @@ def test_a_seeded_sample_of_the_grid_is_stored_with_its_seed(
         assert config["configurations"] == {
             m: expected_configurations()[m] for m in store.methods()
         }
+
+
+def test_a_dataset_tree_is_swept_scene_by_scene(
+    sweep: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder of scenes (and of other things) gives its scenes, in order: the same rows."""
+    tree = tmp_path / "dataset"
+    tree.mkdir()
+    for scene in sweep["scenes"]:
+        (tree / scene.name).symlink_to(scene, target_is_directory=True)
+    (tree / "notes").mkdir()  # not a scene: passed over
+    space = sweep["root"] / "space.yaml"
+    out = tmp_path / "tree"
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(tree), "--out", str(out), "--quiet"
+    )
+    assert code == 0, err
+    with ResultsStore.open(out) as store:
+        assert store.sequences() == list(SCENES)
+    for sequence in SCENES:
+        assert frame_rows(out, sequence) == frame_rows(sweep["out"], sequence)
+    empty = tmp_path / "empty"
+    (empty / "notes").mkdir(parents=True)
+    code, _, err = tune(
+        capsys, "--space", str(space), "--scene", str(empty), "--out", str(tmp_path / "none")
+    )
+    assert code == 2
+    assert "not a recognised scene folder" in err
+    assert "nor a dataset tree" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "none").exists()
