@@ -252,6 +252,8 @@ def sequence_drift(store: object, sequence: str) -> dict[str, tuple[int, DriftSu
     """Per method, its LiDAR drift pairs in ``sequence`` (None: not recorded, or live totals)."""
     reader = getattr(store, "drift_pairs", None)
     return reader(sequence) if reader else None
+
+
 def flicker_entry(flicker: Mapping[str, tuple[int, int, TemporalSums]]) -> dict[str, Any]:
     """The JSON ``flicker`` entry of ``summary.json`` and ``eval --flicker``.
 

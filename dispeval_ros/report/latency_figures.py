@@ -113,7 +113,6 @@ def delays_figure(panels: Sequence[Mapping[str, Any]], path: Path | None) -> Any
     """The delay of every frame per method, one panel per sequence (whole frame numbers)."""
     from matplotlib.ticker import MaxNLocator
 
-
     figure = new_figure(5.2 * len(panels), 3.6)
     axes_list = figure.subplots(1, len(panels), squeeze=False)[0]
     for axes, panel in zip(axes_list, panels, strict=True):

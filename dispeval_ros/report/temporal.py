@@ -3,8 +3,9 @@
 Per sequence and method the pair measures of ``--temporal`` (TEPE against the GT's own change)
 and the ego-motion residual of ``--egomotion`` (the estimate moved by the camera's motion and
 compared with the next one: temporal noise measured without ground truth, not accuracy; its
-criteria keep their ``gtfree:`` label), and per pair of consecutive frames each method's TEPE
-and mean |residual| for the per-frame plot.
+criteria keep their ``gtfree:`` label), the LiDAR drift between scans (``drift:``) and the
+flicker of a static camera where recorded, and per pair of consecutive frames each method's
+TEPE and mean |residual| for the per-frame plot.
 
 The pooled values are summary.json's ``temporal`` and ``egomotion`` entries
 (:meth:`~dispeval_ros.summary.SequenceSummary.temporal_dict`, ``egomotion_dict``): the same
@@ -17,12 +18,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, TypeVar
 
+from dispeval_ros.core.lidar_drift import LABEL as DRIFT_LABEL
 from dispeval_ros.core.objectives import EGOMOTION_OBJECTIVES
 from dispeval_ros.core.temporal import pair_unit
 from dispeval_ros.io.jsonio import json_safe
 from dispeval_ros.io.store import ResultsStore
 from dispeval_ros.report.canvas import LINE_COLOURS, new_figure, plain_numbers
-from dispeval_ros.summary import SequenceSummary, summarize
+from dispeval_ros.summary import FLICKER_LABEL, SequenceSummary, summarize
 
 T = TypeVar("T")
 
@@ -93,9 +95,28 @@ def _series(store: ResultsStore, summary: SequenceSummary) -> tuple[dict[str, An
     return tepe, residual
 
 
+def drift_columns(entry: dict[str, Any] | None) -> list[str]:
+    """The LiDAR drift's values the table shows (their units are the entry's)."""
+    if not entry:
+        return []
+    thresholds = entry["options"]["thresholds"]
+    return ["counted", "mean", "rms", *(f"bad_{t:g}" for t in thresholds), "bias_drift"]
+
+
+def flicker_columns(entry: dict[str, Any] | None) -> list[str]:
+    """Flicker's values the table shows: the mean spread, its rms, the share above each level."""
+    if not entry or not entry["methods"]:
+        return []
+    first = next(iter(entry["methods"].values()))["criteria"]
+    values = next(iter(first.values())) if first else {}
+    return ["mean_abs", "rms", *(k for k in values if k.startswith("bad_"))]
+
+
 def _sequence(store: ResultsStore, summary: SequenceSummary) -> dict[str, Any] | None:
     temporal, egomotion = summary.temporal_dict() or {}, summary.egomotion_dict() or {}
-    if not temporal and not egomotion:
+    drift, flicker = summary.drift_dict(), summary.flicker_dict()
+    flicker = flicker if flicker and flicker["methods"] else None  # (a table with no window)
+    if not temporal and not egomotion and not flicker:
         return None
     tepe_series, residual_series = _series(store, summary)
     motion = summary.motion or {}
@@ -113,12 +134,16 @@ def _sequence(store: ResultsStore, summary: SequenceSummary) -> dict[str, Any] |
         "tepe_series": tepe_series,
         "residual_series": residual_series,
         "frames": len(store.stamps(summary.sequence)),
+        "drift": drift,
+        "drift_columns": drift_columns(drift),
+        "flicker": flicker,
+        "flicker_columns": flicker_columns(flicker),
     }
 
 
 def temporal_data(store: ResultsStore) -> dict[str, Any]:
     """The report's temporal block (``recorded`` false without pairs: see the module)."""
-    if not (store.records_pairs() or store.records_motion()):
+    if not (store.records_pairs() or store.records_motion() or store.records_flicker()):
         return {"recorded": False}
     summary = summarize(store)  # the pooled pairs do not depend on the objectives
     sequences = {s.sequence: _sequence(store, s) for s in summary.sequences}
@@ -133,6 +158,8 @@ def temporal_data(store: ResultsStore) -> dict[str, Any]:
             "noise_note": NOISE_NOTE,
             "tepe_label": TEPE_LABEL,
             "residual_label": RESIDUAL_LABEL,
+            "drift_note": DRIFT_LABEL,
+            "flicker_note": FLICKER_LABEL,
             "sequences": found,
         }
     )
@@ -149,7 +176,6 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
     residual's panel is titled as noise (:data:`NOISE_NOTE`'s first words), never accuracy.
     """
     from matplotlib.ticker import MaxNLocator
-
 
     panels = [
         (name, kind, block[f"{kind}_series"])
@@ -184,6 +210,9 @@ def temporal_figure(temporal: dict[str, Any], path: Path | None) -> Any:
 def write_temporal_figures(directory: Path, temporal: dict[str, Any] | None) -> list[Path]:
     """:data:`TEMPORAL_FIGURE` in ``directory``; none where no pair is recorded."""
     if not temporal or not temporal.get("recorded"):
+        return []
+    series = [b[k] for b in temporal["sequences"].values() for k in ("tepe_series", "residual_series")]
+    if not any(series):  # flicker or drift only: their tables, no per-pair plot
         return []
     path = Path(directory) / TEMPORAL_FIGURE
     temporal_figure(temporal, path)

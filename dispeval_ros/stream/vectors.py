@@ -74,6 +74,8 @@ META_KEYS = (
     "_policy", "_relative", "_thresholds", "_overlapping", ESTIMATE_STAMP_KEY, ARRIVAL_KEY,
     DELAY_KEY,
 )  # fmt: skip
+
+
 @dataclass(frozen=True)
 class StatusRecord:
     """One diagnostic status: a method's scores on one frame (or a model result)."""

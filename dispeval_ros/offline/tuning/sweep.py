@@ -253,6 +253,8 @@ def run_units(
         if progress is not None:
             progress(report.units_done, len(todo), report)
     return report
+
+
 def run_sweep(
     store: ResultsStore,
     scenes: Sequence[Path],

@@ -1,14 +1,16 @@
   // ---- temporal consistency: pooled TEPE, the ego-motion residual (noise), per pair of frames
   // (report/temporal.py builds the data: summary.json's temporal and egomotion entries)
 
-  /* One table row per method and criterion: method, criterion, pairs, the count, each column. */
-  function methodRows(entries, count, columns) {
+  /* One table row per method and criterion: method, criterion, its runs (pairs, windows), the
+   * count, each column. */
+  function methodRows(entries, count, columns, runs) {
     const rows = [];
     for (const method of Object.keys(entries)) {
       const entry = entries[method];
+      if (!entry.criteria) continue;  // no pair scored
       for (const criterion of Object.keys(entry.criteria)) {
         const values = entry.criteria[criterion];
-        const row = [method, criterion, entry.pairs, values[count]];
+        const row = [method, criterion, entry[runs || 'pairs'], values[count]];
         rows.push(row.concat(columns.map((q) => own(values, q))));
       }
     }
@@ -23,7 +25,7 @@
     const children = [el('h2', { text: 'Temporal consistency' })];
     for (const name of Object.keys(info.sequences)) {
       const block = info.sequences[name];
-      const shown = { tepe: [], residual: [] };
+      const shown = { tepe: [], residual: [], drift: [], flicker: [] };
       D.temporalState.sequences[name] = shown;
       children.push(el('h3', { text: name }));
       if (block.temporal) {
@@ -40,6 +42,22 @@
         children.push(simpleTable(['method', 'criterion (noise, not accuracy)', 'pairs',
           'n_residual'].concat(columns.map(residualHeader)), shown.residual.map(cells),
         'temporal-residual-' + name));
+      }
+      if (block.drift) {
+        shown.drift = methodRows(block.drift.methods, 'n', block.drift_columns);
+        children.push(el('p', { className: 'muted small noise-note', text: info.drift_note }));
+        children.push(simpleTable(['method', 'criterion (noise, not accuracy)', 'pairs', 'n']
+          .concat(block.drift_columns.map(function (c) {
+            return c + ' [' + (block.drift.units[c] || '') + ']';
+          })), shown.drift.map(cells), 'temporal-drift-' + name));
+      }
+      if (block.flicker) {
+        shown.flicker = methodRows(block.flicker.methods, 'n_residual', block.flicker_columns,
+          'windows');
+        children.push(el('p', { className: 'muted small noise-note', text: info.flicker_note }));
+        children.push(simpleTable(['method', 'criterion (noise, not accuracy)', 'windows',
+          'n_residual'].concat(block.flicker_columns.map(residualHeader)),
+        shown.flicker.map(cells), 'temporal-flicker-' + name));
       }
       const plots = el('div', { className: 'bars temporal-plots' });
       if (Object.keys(block.tepe_series).length) {
