@@ -159,15 +159,32 @@ def pair_values(previous: int, pair: PairScores) -> list[tuple[str, str]]:
     return [*values, (PAIR_PREVIOUS_KEY, str(int(previous))), *zip(PAIR_META, meta, strict=True)]
 
 
+def _criterion_values(
+    prefix: str, sums_key: str, sums: TemporalSums | DriftSums
+) -> list[tuple[str, str]]:
+    """Per criterion, ``PREFIXCRITERION/VALUE`` of its summary and ``.../SUMS_KEY`` of its row."""
+    values: list[tuple[str, str]] = []
+    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
+        name = f"{prefix}{criterion}/"
+        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
+        values.append((name + sums_key, " ".join(format_number(v) for v in row)))
+    return values
+
+
+def _criterion_sums(
+    values: Sequence[tuple[str, str]], prefix: str, sums_key: str
+) -> tuple[list[str], list[str]]:
+    """The criteria of the ``PREFIXCRITERION/SUMS_KEY`` keys, in order, and their sums' texts."""
+    suffix = "/" + sums_key
+    found = [(k, v) for k, v in values if k.startswith(prefix) and k.endswith(suffix)]
+    return [k[len(prefix) : -len(suffix)] for k, _ in found], [v for _, v in found]
+
+
 def motion_values(
     previous: int, sums: TemporalSums, with_previous: bool = True
 ) -> list[tuple[str, str]]:
     """The keys of a pair's ego-motion residual (read back by :func:`motion_from_status`)."""
-    values: list[tuple[str, str]] = []
-    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
-        name = f"{MOTION_PREFIX}{GT_FREE_PREFIX}{criterion}/"
-        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
-        values.append((name + MOTION_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    values = _criterion_values(MOTION_PREFIX + GT_FREE_PREFIX, MOTION_SUMS_KEY, sums)
     values.append((MOTION_META[0], " ".join(format_number(t) for t in sums.thresholds)))
     values.append((MOTION_META[1], format_number(sums.offsets[0])))
     return values + ([(PAIR_PREVIOUS_KEY, str(int(previous)))] if with_previous else [])
@@ -180,12 +197,10 @@ def motion_from_status(values: Sequence[tuple[str, str]]) -> tuple[int, Temporal
     table = dict(values)
     if MOTION_META[1] not in table:
         return None
-    suffix, start = "/" + MOTION_SUMS_KEY, len(MOTION_PREFIX) + len(GT_FREE_PREFIX)
-    keys = [k for k, _ in values if k.startswith(MOTION_PREFIX) and k.endswith(suffix)]
-    criteria = [k[start : -len(suffix)] for k in keys]
+    criteria, texts = _criterion_sums(values, MOTION_PREFIX + GT_FREE_PREFIX, MOTION_SUMS_KEY)
     try:
         thresholds = [float(t) for t in table[MOTION_META[0]].split()]
-        sums = np.array([[float(v) for v in table[k].split()] for k in keys])
+        sums = np.array([[float(v) for v in text.split()] for text in texts])
         offset, previous = float(table[MOTION_META[1]]), int(table[PAIR_PREVIOUS_KEY])
         return previous, TemporalSums.of_pair(criteria, thresholds, sums, offset)
     except (KeyError, ValueError):
@@ -196,11 +211,7 @@ def drift_values(drift: DriftSums) -> list[tuple[str, str]]:
     """The keys of a pair's LiDAR drift (read back by :func:`drift_from_status`)."""
     from dispeval_ros.core.lidar_drift import PREFIX
 
-    values: list[tuple[str, str]] = []
-    for criterion, row in zip(drift.criteria, drift.sums, strict=True):
-        name = f"{DRIFT_KEY_PREFIX}{PREFIX}{criterion}/"
-        values.extend((name + k, format_number(v)) for k, v in drift.summary(criterion).items())
-        values.append((name + DRIFT_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    values = _criterion_values(DRIFT_KEY_PREFIX + PREFIX, DRIFT_SUMS_KEY, drift)
     options = drift.options
     meta = (
         " ".join(format_number(t) for t in drift.thresholds),
@@ -217,12 +228,10 @@ def drift_from_status(values: Sequence[tuple[str, str]]) -> DriftSums | None:
     table = dict(values)
     if DRIFT_META[0] not in table:
         return None
-    suffix, start = "/" + DRIFT_SUMS_KEY, len(DRIFT_KEY_PREFIX) + len(PREFIX)
-    keys = [k for k, _ in values if k.startswith(DRIFT_KEY_PREFIX) and k.endswith(suffix)]
+    criteria, texts = _criterion_sums(values, DRIFT_KEY_PREFIX + PREFIX, DRIFT_SUMS_KEY)
     try:
         thresholds, policy, visibility = (table[key] for key in DRIFT_META)
-        sums = np.array([float(v) for k in keys for v in table[k].split()])
-        criteria = [k[start : -len(suffix)] for k in keys]
+        sums = np.array([float(v) for text in texts for v in text.split()])
         levels = [float(t) for t in thresholds.split()]
         return DriftSums.restored(criteria, sums, policy, visibility, levels)
     except (KeyError, ValueError):
@@ -259,11 +268,7 @@ def read_pairs(
 def flicker_values(window: FlickerScore) -> list[tuple[str, str]]:
     """The keys of a flicker window (read back by :func:`flicker_from_status`)."""
     sums = window.sums
-    values: list[tuple[str, str]] = []
-    for criterion, row in zip(sums.criteria, sums.sums, strict=True):
-        name = f"{FLICKER_PREFIX}{GT_FREE_PREFIX}{criterion}/"
-        values.extend((name + k, format_number(v)) for k, v in sums.summary(criterion).items())
-        values.append((name + FLICKER_SUMS_KEY, " ".join(format_number(v) for v in row)))
+    values = _criterion_values(FLICKER_PREFIX + GT_FREE_PREFIX, FLICKER_SUMS_KEY, sums)
     meta = (str(window.start), str(window.stamp), str(window.frames),
             " ".join(format_number(t) for t in sums.thresholds))  # fmt: skip
     return [*values, *zip(FLICKER_META, meta, strict=True)]
@@ -277,14 +282,11 @@ def flicker_from_status(method: str, values: Sequence[tuple[str, str]]) -> Flick
     table = dict(values)
     if FLICKER_META[0] not in table:
         return None
-    suffix, start = "/" + FLICKER_SUMS_KEY, len(FLICKER_PREFIX) + len(GT_FREE_PREFIX)
-    keys = [k for k, _ in values if k.startswith(FLICKER_PREFIX) and k.endswith(suffix)]
+    criteria, texts = _criterion_sums(values, FLICKER_PREFIX + GT_FREE_PREFIX, FLICKER_SUMS_KEY)
     try:
         first, last, frames, levels = (table[key] for key in FLICKER_META)
-        sums = np.array([[float(v) for v in table[k].split()] for k in keys])
-        restored = restored_flicker(
-            [k[start : -len(suffix)] for k in keys], [float(t) for t in levels.split()], sums
-        )
+        sums = np.array([[float(v) for v in text.split()] for text in texts])
+        restored = restored_flicker(criteria, [float(t) for t in levels.split()], sums)
         return FlickerScore(method, int(first), int(last), int(frames), restored)
     except (KeyError, ValueError):
         raise InputError("the diagnostic status has malformed flicker keys") from None
