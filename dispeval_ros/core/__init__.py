@@ -13,6 +13,12 @@ __getattr__, __dir__ = lazy_exports(
     globals(),
     {
         "dispeval_ros.core.camera": ("Camera",),
+        "dispeval_ros.core.confidence": (
+            "ConfidencePreset",
+            "ConfidenceScorer",
+            "ConfidenceSums",
+            "parse_preset",
+        ),
         "dispeval_ros.core.criteria": (
             "CRITERION_SETS",
             "CriterionSet",
@@ -95,6 +101,12 @@ __getattr__, __dir__ = lazy_exports(
 
 if TYPE_CHECKING:
     from dispeval_ros.core.camera import Camera
+    from dispeval_ros.core.confidence import (
+        ConfidencePreset,
+        ConfidenceScorer,
+        ConfidenceSums,
+        parse_preset,
+    )
     from dispeval_ros.core.criteria import (
         CRITERION_SETS,
         CriterionSet,
@@ -163,6 +175,9 @@ __all__ = [
     "Camera",
     "CloudFilter",
     "CloudProjection",
+    "ConfidencePreset",
+    "ConfidenceScorer",
+    "ConfidenceSums",
     "CriterionSet",
     "DriftOptions",
     "DriftSums",
@@ -206,6 +221,7 @@ __all__ = [
     "middlebury_ranks",
     "pareto_front",
     "parse_measures",
+    "parse_preset",
     "prepare_frame",
     "project_cloud",
     "standard_partition",

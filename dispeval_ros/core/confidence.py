@@ -30,6 +30,7 @@ from dispeval_ros.core import registry
 from dispeval_ros.core.evaluator import Evaluator, Reference
 from dispeval_ros.core.kernels import confidence as k
 from dispeval_ros.core.measures import DEFAULT_BAD_THRESHOLDS, bad_threshold
+from dispeval_ros.core.registry import MAX_THRESHOLDS
 from dispeval_ros.errors import ConfigurationError, InputError, ShapeMismatchError
 
 MAX_LEVELS = 256
@@ -385,7 +386,12 @@ class ConfidenceScorer:
         self.thresholds = tuple(sorted({float(t) for t in thresholds}))
         if not self.thresholds or not all(t > 0 and math.isfinite(t) for t in self.thresholds):
             raise ConfigurationError("confidence thresholds must be positive numbers")
-        self._threshold_array = np.array(self.thresholds, dtype=np.float64)
+        if len(self.thresholds) > MAX_THRESHOLDS:
+            raise ConfigurationError(
+                f"at most {MAX_THRESHOLDS} confidence thresholds at once, got {len(self.thresholds)}"
+            )
+        padded = (*self.thresholds, *(math.inf,) * (MAX_THRESHOLDS - len(self.thresholds)))
+        self._threshold_array = np.array(padded, dtype=np.float64)
         self._local = threading.local()
 
     def score(
@@ -408,32 +414,47 @@ class ConfidenceScorer:
         values = self._buffer("values", size, np.float32)
         level_of = self._buffer("levels", size, np.int32)
         shift = self.evaluator.gather(reference, estimate, values, est_range, est_offset)
-        k.gather_levels(
-            rating.reshape(-1), partition.order, grade.lut, grade.low, grade.high,
-            grade.higher_is_better, grade.levels, level_of,
-        )  # fmt: skip
+        if grade.lut.size:
+            k.gather_lut_levels(rating.reshape(-1), partition.order, grade.lut, level_of)
+        else:
+            k.gather_levels(
+                rating.reshape(-1), partition.order, grade.low, grade.high,
+                grade.higher_is_better, grade.levels, level_of,
+            )  # fmt: skip
         cells = partition.offsets.shape[0] - 1
-        width = k.LEVEL_BAD + len(self.thresholds)
-        sums = np.zeros((cells, grade.levels + 1, width))
-        errors = np.zeros((cells, k.ERROR_BINS, 2))
-        depth_errors = np.zeros((cells, k.ERROR_BINS, 2))
+        grades = 2 * (len(self.thresholds) + 1)
+        table = np.zeros((cells, grade.levels + 2, 2 + grades))
+        errors = np.zeros((cells, k.ERROR_BINS + 1, 2))
+        depth_errors = np.zeros((cells, k.ERROR_BINS + 1, 2))
         counters = np.zeros((cells, k.COUNTERS))
         depth = reference.camera is not None and math.isfinite(reference.fb)
         k.accumulate_levels(
             values, reference.gt_sorted, level_of, partition.offsets, grade.levels,
             self._threshold_array, 0.0 if self.evaluator.missing == "ignore" else 1.0, shift,
             reference.fb if depth else 0.0, reference.depth_offset, self.evaluator.mu, depth,
-            sums, errors, depth_errors, counters,
+            table, errors, depth_errors, counters,
+            self._buffer("scratch_float", (2, size), np.float64),
+            self._buffer("scratch_int", (4, size), np.int32),
         )  # fmt: skip
         membership = partition.membership.astype(np.float64)
+        level_sums = np.tensordot(membership, table[:, :-1], axes=(1, 0))
+        counts = level_sums[..., 2:]
+        beyond = np.cumsum(counts[..., ::-1].reshape(*counts.shape[:2], -1, 2).sum(-1), -1)
+        columns = [
+            counts.sum(-1),
+            level_sums[..., 0],
+            level_sums[..., 1],
+            counts[..., 1::2].sum(-1),
+            *(beyond[..., -2 - j] for j in range(len(self.thresholds))),
+        ]
         return ConfidenceSums(
             criteria=partition.criteria,
             thresholds=self.thresholds,
             levels=grade.levels,
             depth=depth,
-            sums=np.tensordot(membership, sums, axes=(1, 0)),
-            errors=np.tensordot(membership, errors, axes=(1, 0)),
-            depth_errors=np.tensordot(membership, depth_errors, axes=(1, 0)),
+            sums=np.stack(columns, axis=-1),
+            errors=np.tensordot(membership, errors[:, :-1], axes=(1, 0)),
+            depth_errors=np.tensordot(membership, depth_errors[:, :-1], axes=(1, 0)),
             counters=np.tensordot(membership, counters, axes=(1, 0)),
             points=membership @ np.diff(partition.offsets).astype(np.float64),
         )
@@ -452,10 +473,12 @@ class ConfidenceScorer:
             return np.ascontiguousarray(image, dtype=np.float32)
         return np.ascontiguousarray(image)
 
-    def _buffer(self, name: str, size: int, dtype: type) -> np.ndarray:
+    def _buffer(self, name: str, shape: int | tuple[int, ...], dtype: type) -> np.ndarray:
+        """A per-thread scratch array, reallocated only when the shape changes."""
+        shape = (shape,) if isinstance(shape, int) else shape
         buffer = getattr(self._local, name, None)
-        if buffer is None or buffer.shape != (size,):
-            buffer = np.empty(size, dtype=dtype)
+        if buffer is None or buffer.shape != shape:
+            buffer = np.empty(shape, dtype=dtype)
             setattr(self._local, name, buffer)
         return buffer
 

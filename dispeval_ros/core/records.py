@@ -19,7 +19,12 @@ if TYPE_CHECKING:
 __all__ = [
     "FrameFlicker",
     "FrameMotion",
-    "FramePair", "FrameScores", "FrameTiming", "MatchCounts", "Problem"]
+    "FramePair",
+    "FrameScores",
+    "FrameTiming",
+    "MatchCounts",
+    "Problem",
+]
 
 
 @dataclass(frozen=True)

@@ -528,7 +528,13 @@ def flicker_spread(
                     before, t_d, t_z, q_d, q_z = ok, 0.0, 0.0, 0.0, 0.0
                 else:
                     base, base_z = first[x], first_z[x]
-                    before, t_d, t_z, q_d, q_z = valid[x], total[x], total_z[x], square[x], square_z[x]
+                    before, t_d, t_z, q_d, q_z = (
+                        valid[x],
+                        total[x],
+                        total_z[x],
+                        square[x],
+                        square_z[x],
+                    )
                 d0, d1 = np.float64(r0[x]), np.float64(r1[x])
                 d2, d3 = np.float64(r2[x]), np.float64(r3[x])
                 s0, s1, s2, s3 = d0 + doffs, d1 + doffs, d2 + doffs, d3 + doffs
