@@ -53,4 +53,3 @@ def ensure_cache_location(source_dir: Path = PACKAGE_DIR / "core") -> str | None
         return None  # not even the temporary folder: numba's own error says so
     numba.config.CACHE_DIR = str(fallback)  # type: ignore[attr-defined]
     return str(fallback)
-

@@ -21,7 +21,7 @@ import numpy as np
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
 from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, drift_entry
-from dispeval_ros.core.measures import GT_FREE_PREFIX, applies
+from dispeval_ros.core.measures import GT_FREE_PREFIX, HIGHER_IS_BETTER, applies
 from dispeval_ros.core.objectives import (
     default_objective_measures,
     egomotion_objectives,
@@ -185,15 +185,17 @@ def _block(
     criteria, GT-free ones (vpe, lrc) on ``gtfree:`` criteria, so the two never mix unless
     both kinds of measure are chosen; and only on criteria with points (:func:`has_points`:
     ``boundary`` of a GT without disparity jumps is no objective, nor a criterion empty in the
-    frame of a per-frame objective).
+    frame of a per-frame objective). Every objective is minimised: higher-is-better measures
+    (density) are negated, as :func:`~dispeval_ros.core.objectives.objective_matrix` does.
     """
     criteria = [c for c in _criteria(scores[methods[0]]) if has_points(scores, c)]
     pairs = [(c, m) for c in criteria for m in measures if applies(m, c)]
     names = [f"{c}/{m}{label}" for c, m in pairs]
+    signs = np.array([-1.0 if m in HIGHER_IS_BETTER else 1.0 for _, m in pairs])
     block = np.array(
         [[scores[method][c][m] for c, m in pairs] for method in methods], dtype=np.float64
     ).reshape(len(methods), len(pairs))
-    return names, block
+    return names, block * signs
 
 
 class ScoreSource(Protocol):

@@ -23,9 +23,7 @@ README = CLONE / "README.md"
 def readme_block(name: str, language: str) -> str:
     """The text of the README block marked ``<!-- name -->`` (a ``language`` code fence)."""
     text = README.read_text(encoding="utf-8")
-    block = re.search(
-        rf"<!-- {name} -->\n```{language}\n(.*?)```\n<!-- /{name} -->", text, re.S
-    )
+    block = re.search(rf"<!-- {name} -->\n```{language}\n(.*?)```\n<!-- /{name} -->", text, re.S)
     assert block, f"README.md has no {name} block"
     return block.group(1)
 

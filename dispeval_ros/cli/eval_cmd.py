@@ -442,9 +442,7 @@ def _write_out(
         "camera": _camera_dict(scored[0].frame.camera),
         **extras,
     }
-    files = write_scored_folder(
-        args.out, sequence, bag_location(where), info, frames, provenance
-    )
+    files = write_scored_folder(args.out, sequence, bag_location(where), info, frames, provenance)
     return (
         f"results: {args.out / RESULTS_FILE} ({files.rows} rows; {args.out / FRAMES_CSV}, "
         f"{args.out / SUMMARY_JSON})"

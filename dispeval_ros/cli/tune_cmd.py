@@ -327,8 +327,7 @@ def _figures(folder: Path, rows: list[Any]) -> tuple[list[Path], str]:
     from dispeval_ros.report.sweep import SweepPoint, write_sweep_figures
 
     points = [
-        SweepPoint(r.configuration.name, r.configuration.values, r.measures, r.group)
-        for r in rows
+        SweepPoint(r.configuration.name, r.configuration.values, r.measures, r.group) for r in rows
     ]
     try:
         return write_sweep_figures(points, folder / FIGURES_FOLDER), ""

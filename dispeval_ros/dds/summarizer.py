@@ -136,7 +136,15 @@ class DdsSummarizer:
             except InputError:
                 continue  # not a dispeval status, or a malformed one
         self.add(
-            stamp, scores, problems, deliveries, arrivals, pairs, motion, drift=drift, flicker=flicker
+            stamp,
+            scores,
+            problems,
+            deliveries,
+            arrivals,
+            pairs,
+            motion,
+            drift=drift,
+            flicker=flicker,
         )
 
     def add(

@@ -559,7 +559,9 @@ def scene_folders(path: PathLike) -> list[Path]:
     try:
         _frames(folder)
     except LayoutError as error:
-        scenes = [child for child in sorted(folder.iterdir()) if child.is_dir() and _is_scene(child)]
+        scenes = [
+            child for child in sorted(folder.iterdir()) if child.is_dir() and _is_scene(child)
+        ]
         if not scenes:
             raise LayoutError(f"{error} (nor a dataset tree: no scene folder in it)") from None
         return scenes

@@ -86,7 +86,9 @@ def group_table_figure(
         for line in models.interpretation.splitlines()
     )
     lines = text.count("\n") + 1
-    figure = new_figure(10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines + (0.4 if reference else 0))
+    figure = new_figure(
+        10.0, 0.6 + 0.26 * (len(rows) + 1) + 0.2 * lines + (0.4 if reference else 0)
+    )
     table_axes, text_axes = figure.subplots(
         2, 1, gridspec_kw={"height_ratios": [len(rows) + 1, 0.8 * lines]}
     )

@@ -1,4 +1,4 @@
-"""What a parameter sweep looks like: sensitivities and parallel coordinates.
+"""What a parameter sweep looks like: sensitivities, parallel coordinates, density fronts.
 
 The input is one :class:`SweepPoint` per configuration (its parameter values, its measures,
 its A* group), as ``dispeval tune`` has them; nothing here reads a database. The sensitivity
@@ -6,7 +6,9 @@ of a measure to a parameter is, for every value the parameter takes, the median 
 quartiles of the measure over the configurations with that value (the other parameters vary
 across them), and its span: the largest minus the smallest of those medians, the measure's
 change the parameter alone accounts for. The parallel coordinates put the swept parameters
-beside the measures, A* group 1 in front. Figures are matplotlib ``Figure`` objects (no
+beside the measures, A* group 1 in front. Where the density is among the measures, the
+density–error front of each error measure (Kostliva & Šára: a threshold swept, each
+configuration an operating point) shows what density costs. Figures are matplotlib ``Figure`` objects (no
 pyplot).
 """
 
@@ -26,6 +28,8 @@ from dispeval_ros.report.canvas import LINE_COLOURS, figure_context, new_figure,
 SENSITIVITY_PREFIX = "sensitivity_"
 """``sensitivity_<parameter>.png``: one figure per swept parameter."""
 PARALLEL_FIGURE = "sweep_parallel.png"
+DENSITY_FIGURE = "density_front.png"
+"""The density–error fronts (Kostliva & Šára), where ``density`` is among the measures."""
 FRONT_COLOUR, REST_COLOUR = "#1a9850", "#b0b0b0"
 MAX_TICKS = 12
 """Up to this many values, a sensitivity figure marks each of them on its axis."""
@@ -139,11 +143,70 @@ def parallel_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
                           xytext=(0, -10 if end == 0.0 else 4), ha="center", fontsize=7)  # fmt: skip
     axes.set_ylim(-0.1, 1.12)
     axes.set_title(
-        f"{len(points)} configurations; A* group 1 in colour "
-        f"({sum(p.group == 1 for p in points)})",
+        f"{len(points)} configurations; A* group 1 in colour ({sum(p.group == 1 for p in points)})",
         fontsize=9,
         loc="left",
     )
+    if path is not None:
+        figure.savefig(path)
+    return figure
+
+
+def _criterion(key: str) -> tuple[str, str]:
+    """``("bad_2", "all")`` of a sweep measure key ``"bad_2 (all)"``."""
+    measure, _, criterion = key.partition(" (")
+    return measure, criterion.rstrip(")")
+
+
+def density_pairs(points: Sequence[SweepPoint]) -> list[tuple[str, str]]:
+    """(error key, density key) of every measure shown beside the density of its criterion."""
+    keys = list(points[0].measures) if points else []
+    pairs = []
+    for key in keys:
+        measure, criterion = _criterion(key)
+        density = f"density ({criterion})"
+        if measure != "density" and density in keys:
+            pairs.append((key, density))
+    return pairs
+
+
+def density_front(points: Sequence[SweepPoint], error: str, density: str) -> list[SweepPoint]:
+    """The configurations no other beats on both density (higher) and ``error`` (lower).
+
+    The density–error front of a threshold sweep: each point is an operating point, the front
+    the best error each density can have. Densest first; points with a NaN left out.
+    """
+    finite = [p for p in points if math.isfinite(p.measures[error] + p.measures[density])]
+    finite.sort(key=lambda p: (-p.measures[density], p.measures[error]))
+    front: list[SweepPoint] = []
+    for point in finite:
+        if not front or point.measures[error] < front[-1].measures[error]:
+            front.append(point)
+    return front
+
+
+def density_figure(points: Sequence[SweepPoint], path: Path | None) -> Any:
+    """Per error measure, every configuration at its (density, error), the front joined."""
+    pairs = density_pairs(points)
+    figure = new_figure(3.4 * len(pairs), 3.0)
+    panels = figure.subplots(1, len(pairs), squeeze=False)[0]
+    for axes, (error, density) in zip(panels, pairs, strict=True):
+        xs = [p.measures[density] for p in points]
+        ys = [p.measures[error] for p in points]
+        axes.scatter(xs, ys, s=12, color=REST_COLOUR, zorder=2)
+        front = density_front(points, error, density)
+        axes.plot([p.measures[density] for p in front], [p.measures[error] for p in front],
+                  marker="o", color=FRONT_COLOUR, zorder=3, drawstyle="steps-post")  # fmt: skip
+        if len(front) <= MAX_TICKS:
+            for point in front:
+                axes.annotate(point.name, (point.measures[density], point.measures[error]),
+                              textcoords="offset points", xytext=(3, 3), fontsize=6)  # fmt: skip
+        axes.set_xlabel(density)
+        axes.set_ylabel(error)
+        axes.set_title(f"density–error front ({len(front)} of {len(points)})", fontsize=9,
+                       loc="left")  # fmt: skip
+        plain_numbers(axes)
+        axes.grid(True, alpha=0.3)
     if path is not None:
         figure.savefig(path)
     return figure
@@ -158,6 +221,9 @@ def write_sweep_figures(points: Sequence[SweepPoint], folder: Path) -> list[Path
             raise InputError(f"{folder}: cannot create the figures folder ({error})") from None
         written = [folder / PARALLEL_FIGURE]
         parallel_figure(points, written[0])
+        if density_pairs(points):
+            written.append(folder / DENSITY_FIGURE)
+            density_figure(points, written[-1])
         rows = sensitivities(points)
         for parameter in swept_parameters(points):
             path = folder / f"{SENSITIVITY_PREFIX}{parameter}.png"
@@ -194,6 +260,8 @@ def sweep_data(
     try:
         with figure_context():
             figures[PARALLEL_FIGURE] = _png(parallel_figure(points, None))
+            if density_pairs(points):
+                figures[DENSITY_FIGURE] = _png(density_figure(points, None))
             by = sensitivities(points)
             for parameter in swept:
                 chosen = [r for r in by if r.parameter == parameter]
@@ -231,4 +299,3 @@ def _png(figure: Any) -> str:
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png")
     return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
-

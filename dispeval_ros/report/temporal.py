@@ -211,7 +211,9 @@ def write_temporal_figures(directory: Path, temporal: dict[str, Any] | None) -> 
     """:data:`TEMPORAL_FIGURE` in ``directory``; none where no pair is recorded."""
     if not temporal or not temporal.get("recorded"):
         return []
-    series = [b[k] for b in temporal["sequences"].values() for k in ("tepe_series", "residual_series")]
+    series = [
+        b[k] for b in temporal["sequences"].values() for k in ("tepe_series", "residual_series")
+    ]
     if not any(series):  # flicker or drift only: their tables, no per-pair plot
         return []
     path = Path(directory) / TEMPORAL_FIGURE

@@ -356,7 +356,9 @@ class EvaluatorNode(Node):
 
         def push(topic: str, msg: Any, log_time: int) -> None:
             if self.config.topics.get(topic) == TF_TYPE:  # no header: each transform's stamp
-                self._push(topic, _ShiftedTransforms(msg, offset) if offset else msg, log_time + offset)
+                self._push(
+                    topic, _ShiftedTransforms(msg, offset) if offset else msg, log_time + offset
+                )
                 return
             for seen, value in ((stamps, stamp_ns(msg.header)), (logs, log_time)):
                 if not seen:

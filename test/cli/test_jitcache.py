@@ -92,9 +92,7 @@ def test_the_wheel_carries_compiled_kernels_that_a_first_demo_loads(tmp_path: Pa
         tops = {name.split("/")[0] for name in archive.namelist()}
     assert all(top.startswith("dispeval_ros") for top in tops), tops  # not buildtools, test
     for kernel in ("partition_cells", "accumulate_cells", "forward_warp_occlusion"):
-        assert any(
-            f".{kernel}-" in name and name.endswith(".nbi") for name in cached
-        )
+        assert any(f".{kernel}-" in name and name.endswith(".nbi") for name in cached)
     assert any(name.endswith(".nbc") for name in cached)
 
     site = tmp_path / "site"

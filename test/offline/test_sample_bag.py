@@ -31,5 +31,5 @@ def test_bundled_sample_bag_equals_the_generator(tmp_path: Path) -> None:
     assert _digests(made) == _digests(bundled), (
         "bags/sample_drive differs from make_sample_bag(): regenerate it with "
         "python -c 'from pathlib import Path; from dispeval_ros.offline.sample import "
-        "make_sample_bag; make_sample_bag(Path(\"bags/sample_drive\"))' (after removing it)"
+        'make_sample_bag; make_sample_bag(Path("bags/sample_drive"))\' (after removing it)'
     )

@@ -54,7 +54,8 @@ def test_the_rows_are_tune_csvs(swept: dict[str, Any]) -> None:
         assert shown[3:5] == [int(by[p]) for p in data["parameters"]]
         assert shown[5:] == [float(by[m]) for m in data["measures"]]  # repr round trip: exact
     assert set(data["figures"]) == {
-        PARALLEL_FIGURE, *(f"{SENSITIVITY_PREFIX}{p}.png" for p in data["parameters"])
+        PARALLEL_FIGURE,
+        *(f"{SENSITIVITY_PREFIX}{p}.png" for p in data["parameters"]),
     }
     assert all(uri.startswith("data:image/png;base64,") for uri in data["figures"].values())
 

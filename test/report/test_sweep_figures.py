@@ -77,7 +77,9 @@ def test_figures(tmp_path: Path) -> None:
     points = grid()
     written = write_sweep_figures(points, tmp_path / "figures")
     assert [p.name for p in written] == [
-        PARALLEL_FIGURE, "sensitivity_window.png", "sensitivity_ratio.png"
+        PARALLEL_FIGURE,
+        "sensitivity_window.png",
+        "sensitivity_ratio.png",
     ]
     assert all(p.stat().st_size > 1000 for p in written)
     figure = parallel_figure(points, None)

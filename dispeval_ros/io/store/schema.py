@@ -107,7 +107,9 @@ _FLICKER_SCHEMA = (
 )
 """Each method's flicker sums of a window (``flicker``), ``start`` and ``stamp`` its first and
 last frames' stamps; made with a new database as ``pairs``."""
-_INSERT_FLICKER = f"INSERT INTO flicker_windows ({_FLICKER_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
+_INSERT_FLICKER = (
+    f"INSERT INTO flicker_windows ({_FLICKER_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?)"
+)
 _SELECT_FLICKER = f"SELECT {_FLICKER_COLUMNS} FROM flicker_windows"
 
 

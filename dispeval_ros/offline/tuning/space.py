@@ -198,4 +198,3 @@ def stored_configurations(record: Mapping[str, Any]) -> dict[str, Configuration]
         name: Configuration(name, dict(full), stereo_method(name, family, full))
         for name, full in values.items()
     }
-
