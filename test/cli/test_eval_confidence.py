@@ -105,3 +105,35 @@ def test_nan_everywhere(
 def test_name_without_estimate(files: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     err = failure(run(files, "--confidence", f"other={files['conf']}"), capsys)
     assert "no estimate is named 'other'" in err
+
+
+def test_read_confidence_keeps_values_and_type(tmp_path: Path) -> None:
+    from dispeval_ros.errors import InputError
+    from dispeval_ros.io.files import read_confidence
+
+    values = np.arange(H * W, dtype=np.uint16).reshape(H, W)
+    cv2.imwrite(str(tmp_path / "c16.png"), values)
+    got = read_confidence(tmp_path / "c16.png")
+    assert got.dtype == np.uint16
+    assert np.array_equal(got, values)  # not divided by 256 as a 16-bit disparity would be
+    floats = (values / 7.0).astype(np.float32)
+    cv2.imwrite(str(tmp_path / "c.tiff"), floats)
+    assert np.array_equal(read_confidence(tmp_path / "c.tiff"), floats)
+    np.save(tmp_path / "c8.npy", values.astype(np.uint8))
+    assert read_confidence(tmp_path / "c8.npy").dtype == np.uint8
+    with pytest.raises(InputError, match="unknown confidence file type"):
+        read_confidence(tmp_path / "c.jpg")
+
+
+def test_preset_per_method(files: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    line = run(files, "--confidence", f"m={files['conf']}", "--json")
+    assert main([*line, "--confidence-preset", "m=lower"]) == 0
+    lower = json.loads(capsys.readouterr().out)["confidence"]["m"]["all"]["bad_2"]["auc"]
+    assert main([*line, "--confidence-preset", "lower"]) == 0
+    same = json.loads(capsys.readouterr().out)["confidence"]["m"]["all"]["bad_2"]["auc"]
+    assert main(line) == 0
+    higher = json.loads(capsys.readouterr().out)["confidence"]["m"]["all"]["bad_2"]["auc"]
+    assert lower == same
+    assert lower > higher  # the map rates the bad block low: read the other way, it ranks worse
+    err = failure([*line, "--confidence-preset", "x=wls"], capsys)
+    assert "names no --confidence method: x" in err
