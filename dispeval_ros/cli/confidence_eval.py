@@ -45,6 +45,13 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         help=f"the confidences' convention: {', '.join(PRESETS)}, or higher:LOW:HIGH / "
         f"lower:LOW:HIGH (default {DEFAULT_PRESET}); NAME=PRESET for one method only",
     )
+    group.add_argument(
+        "--confidence-plot",
+        type=Path,
+        metavar="FILE",
+        help="also draw each method's sparsification curves and the oracle's on the criterion "
+        "'all' as a PNG (needs matplotlib; --criteria must include all)",
+    )
 
 
 def _split(spec: str, option: str) -> tuple[str, str]:
@@ -72,8 +79,10 @@ def plan(args: argparse.Namespace, methods: Sequence[str]) -> dict[str, tuple[Pa
     from dispeval_ros.core.confidence import DEFAULT_PRESET, parse_preset
 
     if not args.confidence:
-        if args.confidence_preset:
-            raise ConfigurationError("--confidence-preset needs --confidence NAME=FILE")
+        if args.confidence_preset or args.confidence_plot is not None:
+            raise ConfigurationError(
+                "--confidence-preset and --confidence-plot need --confidence NAME=FILE"
+            )
         return {}
     default, own = parse_preset(DEFAULT_PRESET), {}
     for spec in args.confidence_preset:
@@ -117,11 +126,19 @@ def score_one(
         raise type(error)(message if str(path) in message else f"{path}: {message}") from None
 
 
-def summaries(sums: Mapping[str, Sequence[ConfidenceSums]]) -> dict[str, object]:
+def summaries(pooled: Mapping[str, ConfidenceSums]) -> dict[str, object]:
     """The JSON ``confidence`` entry: each method's pooled sums, summarised."""
-    from dispeval_ros.core.confidence import by_method
+    return {name: one.summary() for name, one in pooled.items()}
 
-    return {name: pooled.summary() for name, pooled in by_method(sums).items()}
+
+def plot(args: argparse.Namespace, pooled: Mapping[str, ConfidenceSums]) -> str | None:
+    """Write ``--confidence-plot FILE`` (the 'all' criterion); the line saying so, if asked."""
+    if args.confidence_plot is None:
+        return None
+    from dispeval_ros.report.confidence import sparsification_figure
+
+    sparsification_figure(pooled, args.confidence_plot)
+    return f"sparsification curves: {args.confidence_plot}"
 
 
 def text(summary: Mapping[str, Any]) -> str:

@@ -596,8 +596,12 @@ def run(args: argparse.Namespace) -> int:
     flicker = flicker_eval.score(args, scored)
     done = [(n, r) for n, r in zip(RESULTS, (temporal, ego, flicker), strict=True) if r is not None]
     result: dict[str, object] = {name: one.to_dict() for name, one in done}
-    rated = confidence_eval.summaries({n: [s.confidence[n] for s in scored if n in s.confidence]
-                                       for n in confidences})  # fmt: skip
+    from dispeval_ros.core.confidence import by_method
+
+    pooled = by_method({n: [s.confidence[n] for s in scored if n in s.confidence]
+                        for n in confidences})  # fmt: skip
+    rated = confidence_eval.summaries(pooled)
+    drawn = confidence_eval.plot(args, pooled)
     inputs = [path for s in scored for path in s.frame.inputs]
     wanted = args.json or args.out is not None  # the text alone hashes nothing
     provenance = _provenance(args, evaluator, scored, inputs) if wanted else {}
@@ -623,6 +627,8 @@ def run(args: argparse.Namespace) -> int:
         print("\n" + one.text())
     if rated:
         print("\n" + confidence_eval.text(rated))
+    if drawn is not None:
+        print(f"\n{drawn}")
     if written is not None:
         print(f"\n{written}")
     return 0

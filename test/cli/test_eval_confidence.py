@@ -137,3 +137,15 @@ def test_preset_per_method(files: dict[str, Path], capsys: pytest.CaptureFixture
     assert lower > higher  # the map rates the bad block low: read the other way, it ranks worse
     err = failure([*line, "--confidence-preset", "x=wls"], capsys)
     assert "names no --confidence method: x" in err
+
+
+def test_plot(files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "curves.png"
+    assert (
+        main(run(files, "--confidence", f"m={files['conf']}", "--confidence-plot", str(png))) == 0
+    )
+    assert f"sparsification curves: {png}" in capsys.readouterr().out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    err = failure(run(files, "--confidence-plot", str(png)), capsys)
+    assert "need --confidence NAME=FILE" in err
