@@ -5,11 +5,18 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dispeval_ros.cli import common, egomotion_eval, flicker_eval, protocol_eval, temporal_eval
+from dispeval_ros.cli import (
+    common,
+    confidence_eval,
+    egomotion_eval,
+    flicker_eval,
+    protocol_eval,
+    temporal_eval,
+)
 from dispeval_ros.cli.output import print_json
 from dispeval_ros.cli.summary import models_text, scores_text
 from dispeval_ros.core import Camera, Evaluator, ModelResult, Reference, Scores, evaluate_models
@@ -25,6 +32,7 @@ from dispeval_ros.errors import ConfigurationError, DispevalError
 from dispeval_ros.io.scene_frames import GT_SOURCES
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.confidence import ConfidenceSums
     from dispeval_ros.io.scenes import Scene
 
 HELP = "score estimated disparity maps against ground truth, by criterion"
@@ -115,6 +123,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     temporal_eval.add_options(parser)
     egomotion_eval.add_options(parser)
     flicker_eval.add_options(parser)
+    confidence_eval.add_options(parser)
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument(
         "--out",
@@ -202,6 +211,7 @@ def _provenance(
         configuration["temporal"] = args.temporal
     configuration.update(egomotion_eval.configuration(args))
     configuration.update(flicker_eval.configuration(args))
+    configuration.update(confidence_eval.configuration(args))
     return provenance_record(configuration, {"files": files_sha256(inputs)})
 
 
@@ -234,6 +244,8 @@ class _Scored:
     pair: ImagePair | None
     model: tuple[list[str], ModelResult] | None
     no_model: str
+    confidence: dict[str, ConfidenceSums]
+    """Each method's confidence sums (``--confidence``)."""
 
 
 def _scene_frames(args: argparse.Namespace, estimates: list[tuple[str, Path]]) -> list[_Frame]:
@@ -290,6 +302,7 @@ def _score(
     frame: _Frame,
     roi: np.ndarray | None,
     roi_names: dict[int, str] | None,
+    confidences: dict[str, tuple[Path, Any]],
 ) -> _Scored:
     """Score every estimate of one frame against its GT (and images); the models if several."""
     from dispeval_ros.io import read_disparity
@@ -312,7 +325,12 @@ def _score(
     right_estimates = dict(_named(spec) for spec in args.est_right)
     if right_estimates and free is None:
         raise ConfigurationError("--est-right needs the images (--left-image/--right-image)")
+    if confidences and reference is None:
+        raise ConfigurationError(
+            f"{confidence_eval.OPTION} needs the ground truth (--gt or --scene)"
+        )
     results: dict[str, Scores] = {}
+    rated: dict[str, ConfidenceSums] = {}
     for name, path in frame.estimates:
         if name in results:
             raise ConfigurationError(
@@ -323,6 +341,13 @@ def _score(
             estimate = read_disparity(path, scale=args.est_scale)
             frame.inputs.append(path)
             gt_scores = None if reference is None else evaluator.score(reference, estimate)
+            if name in confidences and reference is not None:
+                current, preset = confidences[name]
+                rated[name] = confidence_eval.score_one(
+                    evaluator, preset, reference, estimate, current
+                )
+                frame.inputs.append(current)
+                current = path
             free_scores = None
             if free is not None and pair is not None:
                 right_file = right_estimates.pop(name, None)
@@ -358,7 +383,7 @@ def _score(
     elif objectives is not None:
         methods, names, matrix = objectives
         model = (names, evaluate_models(methods, matrix))
-    return _Scored(frame, results, reference, pair, model, no_model)
+    return _Scored(frame, results, reference, pair, model, no_model, rated)
 
 
 def _camera_dict(camera: Camera | None) -> dict[str, float] | None:
@@ -492,6 +517,7 @@ def run(args: argparse.Namespace) -> int:
     temporal_eval.check_options(args)
     egomotion_eval.check_options(args)
     flicker_eval.check_options(args)
+    confidence_eval.check_options(args)
     if args.protocol is not None:
         if args.out is not None:
             raise ConfigurationError(
@@ -534,6 +560,7 @@ def run(args: argparse.Namespace) -> int:
                 ("--roi", args.roi),
                 ("--left-image", args.left_image),
                 ("--est-right", args.est_right),
+                (confidence_eval.OPTION, args.confidence),
             )
             if value
         ]
@@ -560,7 +587,8 @@ def run(args: argparse.Namespace) -> int:
 
     roi_names = _roi_names(args.roi_labels)
     evaluator = common.evaluator_from_args(args, roi_names)
-    scored = [_score(args, evaluator, frame, roi, roi_names) for frame in frames]
+    confidences = confidence_eval.plan(args, [name for name, _ in estimates])
+    scored = [_score(args, evaluator, frame, roi, roi_names, confidences) for frame in frames]
     references = [s.reference for s in scored]
     temporal = temporal_eval.score(pairs, evaluator, references, args.est_scale)
     by_frame = {f.frame: r for f, r in zip(frames, references, strict=True)}
@@ -568,6 +596,12 @@ def run(args: argparse.Namespace) -> int:
     flicker = flicker_eval.score(args, scored)
     done = [(n, r) for n, r in zip(RESULTS, (temporal, ego, flicker), strict=True) if r is not None]
     result: dict[str, object] = {name: one.to_dict() for name, one in done}
+    from dispeval_ros.core.confidence import by_method
+
+    pooled = by_method({n: [s.confidence[n] for s in scored if n in s.confidence]
+                        for n in confidences})  # fmt: skip
+    rated = confidence_eval.summaries(pooled)
+    drawn = confidence_eval.plot(args, pooled)
     inputs = [path for s in scored for path in s.frame.inputs]
     wanted = args.json or args.out is not None  # the text alone hashes nothing
     provenance = _provenance(args, evaluator, scored, inputs) if wanted else {}
@@ -583,12 +617,18 @@ def run(args: argparse.Namespace) -> int:
                 "per_frame": documents,
             }
         document.update(result)
+        if rated:
+            document["confidence"] = rated
         document["provenance"] = provenance
         print_json(document)
         return 0
     print("\n\n".join(_text(evaluator, s) for s in scored))
     for _, one in done:
         print("\n" + one.text())
+    if rated:
+        print("\n" + confidence_eval.text(rated))
+    if drawn is not None:
+        print(f"\n{drawn}")
     if written is not None:
         print(f"\n{written}")
     return 0

@@ -394,6 +394,41 @@ def read_disparity(path: PathLike, scale: float | None = None) -> np.ndarray:
     return np.ascontiguousarray(disparity, dtype=np.float32)
 
 
+CONFIDENCE_EXTENSIONS = (*DISPARITY_EXTENSIONS, ".tif", ".tiff")
+
+
+def read_confidence(path: PathLike) -> np.ndarray:
+    """Read a confidence map as an H×W array of the file's own values and type (no scaling).
+
+    As :func:`read_disparity` reads files, but 8- and 16-bit images stay ``uint8`` / ``uint16``
+    (their ties exact) and integer arrays keep their type; ``.tif``/``.tiff`` may be float.
+    """
+    file = Path(path)
+    suffix = file.suffix.lower()
+    if suffix not in CONFIDENCE_EXTENSIONS:
+        raise InputError(
+            f"{file}: unknown confidence file type {suffix or '(no extension)'!r}, expected "
+            f"one of {', '.join(CONFIDENCE_EXTENSIONS)}"
+        )
+    if suffix == ".pfm":
+        return _as_disparity(read_pfm(file), file)
+    data = _read_bytes(file, "confidence")
+    if suffix in (".tif", ".tiff"):
+        with quiet_opencv():
+            values = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        if values is None:
+            raise InputError(f"{file}: cannot decode the confidence TIFF (corrupt or wrong format)")
+    elif suffix in (".npy", ".npz"):
+        values = _load_npy(data, file) if suffix == ".npy" else _load_npz(data, file)
+    else:
+        return _decode_image(data, file, "confidence")
+    checked = _as_disparity(values, file)  # one real H×W map, or one line
+    kind = np.asarray(values).dtype
+    return np.ascontiguousarray(
+        values.reshape(checked.shape), dtype=kind if kind.kind in "ui" else None
+    )
+
+
 def read_mask(path: PathLike) -> np.ndarray:
     """Read a mask as a uint8 H×W array with the file's values (e.g. 255 / 128 / 0).
 

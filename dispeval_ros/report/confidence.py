@@ -1,0 +1,56 @@
+"""The sparsification curves of each method's confidence against the oracle's, as a PNG."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dispeval_ros.core.confidence import curve_unit
+from dispeval_ros.report.canvas import (
+    LINE_COLOURS,
+    figure_context,
+    measure_label,
+    new_figure,
+    plain_numbers,
+)
+
+if TYPE_CHECKING:
+    from dispeval_ros.core.confidence import ConfidenceSums
+
+
+def _from_zero(density: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The curve from density 0 (its first group's error held there: the group ends only)."""
+    if not density.size:
+        return density, error
+    return np.concatenate(([0.0], density)), np.concatenate((error[:1], error))
+
+
+def sparsification_figure(
+    sums: Mapping[str, ConfidenceSums], path: Path | None, criterion: str = "all"
+) -> Any:
+    """A panel per measure: each method's curve (solid) and its oracle (dashed), with AUSE."""
+    measures = next(iter(sums.values())).measures()
+    with figure_context():
+        figure = new_figure(3.2 * len(measures), 3.0)
+        panels = figure.subplots(1, len(measures), squeeze=False)[0]
+        for axes, measure in zip(panels, measures, strict=True):
+            for k, (method, one) in enumerate(sums.items()):
+                colour = LINE_COLOURS[k % len(LINE_COLOURS)]
+                curve = one.curve(criterion, measure)
+                axes.plot(*_from_zero(curve.density, curve.error), color=colour,
+                          label=f"{method} (AUSE {curve.ause:.3g})")  # fmt: skip
+                axes.plot(*_from_zero(curve.oracle_density, curve.oracle_error), color=colour,
+                          linestyle="--")  # fmt: skip
+            axes.set_xlabel("density")
+            axes.set_ylabel(measure_label(measure, curve_unit(measure)))
+            axes.set_title(f"{criterion}: {measure} (dashed: oracle)", fontsize=9, loc="left")
+            axes.set_xlim(0.0, 1.0)
+            plain_numbers(axes)
+            axes.grid(True, alpha=0.3)
+            axes.legend(fontsize=7)
+        if path is not None:
+            figure.savefig(path)
+    return figure
