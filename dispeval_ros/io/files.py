@@ -14,7 +14,7 @@ import io
 import math
 import os
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO, TypeAlias
@@ -359,6 +359,18 @@ def _as_disparity(values: np.ndarray, path: Path) -> np.ndarray:
     return np.ascontiguousarray(array, dtype=np.float32)
 
 
+def _typed_file(path: PathLike, extensions: Sequence[str], what: str) -> tuple[Path, str]:
+    """The file and its lower-case extension, or one line if ``what`` is not read from it."""
+    file = Path(path)
+    suffix = file.suffix.lower()
+    if suffix not in extensions:
+        raise InputError(
+            f"{file}: unknown {what} file type {suffix or '(no extension)'!r}, expected "
+            f"one of {', '.join(extensions)}"
+        )
+    return file, suffix
+
+
 def read_disparity(path: PathLike, scale: float | None = None) -> np.ndarray:
     """Read a disparity map in pixels as a C-contiguous float32 H×W array.
 
@@ -367,13 +379,7 @@ def read_disparity(path: PathLike, scale: float | None = None) -> np.ndarray:
     ``value / scale``. Default scale: 256 for 16-bit images (KITTI), 1 for everything else
     (8-bit images, float files). Invalid values stay as the source encodes them.
     """
-    file = Path(path)
-    suffix = file.suffix.lower()
-    if suffix not in DISPARITY_EXTENSIONS:
-        raise InputError(
-            f"{file}: unknown disparity file type {suffix or '(no extension)'!r}, expected "
-            f"one of {', '.join(DISPARITY_EXTENSIONS)}"
-        )
+    file, suffix = _typed_file(path, DISPARITY_EXTENSIONS, "disparity")
     factor = _check_scale(scale, file)
     if suffix == ".pfm":
         disparity = _as_disparity(read_pfm(file), file)
@@ -403,13 +409,7 @@ def read_confidence(path: PathLike) -> np.ndarray:
     As :func:`read_disparity` reads files, but 8- and 16-bit images stay ``uint8`` / ``uint16``
     (their ties exact) and integer arrays keep their type; ``.tif``/``.tiff`` may be float.
     """
-    file = Path(path)
-    suffix = file.suffix.lower()
-    if suffix not in CONFIDENCE_EXTENSIONS:
-        raise InputError(
-            f"{file}: unknown confidence file type {suffix or '(no extension)'!r}, expected "
-            f"one of {', '.join(CONFIDENCE_EXTENSIONS)}"
-        )
+    file, suffix = _typed_file(path, CONFIDENCE_EXTENSIONS, "confidence")
     if suffix == ".pfm":
         return _as_disparity(read_pfm(file), file)
     data = _read_bytes(file, "confidence")
