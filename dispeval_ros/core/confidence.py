@@ -214,6 +214,21 @@ class Curve:
     oracle_density: np.ndarray
     oracle_error: np.ndarray
 
+    def at(self, densities: np.ndarray, oracle: bool = False) -> np.ndarray:
+        """The curve's exact error at ``densities`` in (0, 1] (the oracle's with ``oracle``).
+
+        Between two group ends the kept error grows linearly in the density (ties averaged),
+        so ``ε(δ) = S(δ)/δ`` is curved there, not straight: this is the curve to draw.
+        """
+        ends = self.oracle_density if oracle else self.density
+        means = self.oracle_error if oracle else self.error
+        wanted = np.asarray(densities, dtype=np.float64)
+        if not ends.size:
+            return np.full(wanted.shape, math.nan)
+        kept = np.concatenate(([0.0], ends * means))  # S at each end, per point of the total
+        starts = np.concatenate(([0.0], ends))
+        return np.interp(wanted, starts, kept) / np.where(wanted > 0, wanted, math.nan)
+
     @property
     def ause(self) -> float:
         """The area between the curve and the oracle's."""

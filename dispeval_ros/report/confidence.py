@@ -18,14 +18,19 @@ from dispeval_ros.report.canvas import (
 )
 
 if TYPE_CHECKING:
-    from dispeval_ros.core.confidence import ConfidenceSums
+    from dispeval_ros.core.confidence import ConfidenceSums, Curve
 
 
-def _from_zero(density: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The curve from density 0 (its first group's error held there: the group ends only)."""
-    if not density.size:
-        return density, error
-    return np.concatenate(([0.0], density)), np.concatenate((error[:1], error))
+SAMPLES = 400
+"""Densities each curve is drawn at (besides its group ends)."""
+
+
+def _drawn(curve: Curve, oracle: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The exact curve (:meth:`Curve.at`: curved between group ends) from density 0 to 1."""
+    ends = curve.oracle_density if oracle else curve.density
+    densities = np.union1d(np.linspace(0.0, 1.0, SAMPLES + 1)[1:], ends)
+    values = curve.at(densities, oracle)
+    return np.concatenate(([0.0], densities)), np.concatenate((values[:1], values))
 
 
 def sparsification_figure(
@@ -40,9 +45,9 @@ def sparsification_figure(
             for k, (method, one) in enumerate(sums.items()):
                 colour = LINE_COLOURS[k % len(LINE_COLOURS)]
                 curve = one.curve(criterion, measure)
-                axes.plot(*_from_zero(curve.density, curve.error), color=colour,
+                axes.plot(*_drawn(curve, oracle=False), color=colour,
                           label=f"{method} (AUSE {curve.ause:.3g})")  # fmt: skip
-                axes.plot(*_from_zero(curve.oracle_density, curve.oracle_error), color=colour,
+                axes.plot(*_drawn(curve, oracle=True), color=colour,
                           linestyle="--")  # fmt: skip
             axes.set_xlabel("density")
             axes.set_ylabel(measure_label(measure, curve_unit(measure)))

@@ -25,6 +25,7 @@ from dispeval_ros.core.confidence import (
     PRESETS,
     ConfidenceScorer,
     ConfidenceSums,
+    Curve,
     grading,
     optimal_auc,
     parse_preset,
@@ -379,3 +380,18 @@ def test_real_scenes_with_wls_confidences_match_numpy(
         # WLS's confidence is informative: better than random (ratio to the optimum < mean's)
         curve = sums.curve("all", "bad_2")
         assert curve.auc < curve.error[-1]
+
+
+def test_the_drawn_curve_is_exact_between_group_ends() -> None:
+    # ranked groups with ties; at k kept points the expected error is the numpy per-pixel one
+    groups = [[0.0, 1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0, 1.0]]
+    counts = np.array([len(g) for g in groups])
+    density, error, area = sparsification(counts, np.array([sum(g) for g in groups]))
+    drawn = Curve(density, error, area, 0.0, density, error)
+    errors = np.concatenate([np.full(len(g), np.mean(g)) for g in groups])  # ties: group mean
+    kept = np.arange(1, errors.size + 1)
+    expected = np.cumsum(errors) / kept
+    assert drawn.at(kept / errors.size) == pytest.approx(expected, rel=1e-12)
+    # curved, not straight, inside a group: the midpoint is not the chord's midpoint
+    middle = drawn.at(np.array([(density[0] + density[1]) / 2]))[0]
+    assert middle != pytest.approx((error[0] + error[1]) / 2)
