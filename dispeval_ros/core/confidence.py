@@ -150,9 +150,14 @@ CURVE_MEASURES = ("bad_X", "d1", "mae", "mae_z")
 DEFAULT_CURVE_MEASURES = (*(f"bad_{t:g}" for t in DEFAULT_BAD_THRESHOLDS), "d1", "mae", "mae_z")
 
 
+def _frame_measure(measure: str) -> registry.Measure:
+    """The frame measure a curve measure is drawn in: its unit and scale."""
+    return registry.BY_NAME["bad_X" if bad_threshold(measure) is not None else measure]
+
+
 def curve_unit(measure: str) -> str:
     """The unit of a curve measure, as the frame measure of the same name has it."""
-    return registry.BY_NAME["bad_X" if bad_threshold(measure) is not None else measure].unit
+    return _frame_measure(measure).unit
 
 
 def parse_curve_measures(names: Iterable[str]) -> tuple[str, ...]:
@@ -291,10 +296,8 @@ class ConfidenceSums:
         index = self._index(criterion)
         rows = self.sums[index]
         counts = rows[:, k.LEVEL_N]
-        scale = registry.BY_NAME["bad_X" if bad_threshold(measure) else measure].scale
-        threshold = bad_threshold(measure)
-        if threshold is not None or measure == "d1":
-            column = k.LEVEL_D1 if measure == "d1" else k.LEVEL_BAD + self._threshold(threshold)
+        column = self._column(measure)
+        if column not in (k.LEVEL_SUM_E, k.LEVEL_SUM_EZ):  # a bad share: D1 or bad_X
             bad = rows[:, column]
             density, error, auc = sparsification(counts, bad)
             total = counts.sum()
@@ -303,15 +306,11 @@ class ConfidenceSums:
             oracle_d, oracle_e, _ = sparsification(
                 np.array([total - bad.sum(), bad.sum()]), np.array([0.0, bad.sum()])
             )
-        elif measure in ("mae", "mae_z"):
-            if measure == "mae_z" and not self.depth:
-                raise ConfigurationError("mae_z needs the camera (focal length and baseline)")
-            column = k.LEVEL_SUM_E if measure == "mae" else k.LEVEL_SUM_EZ
-            density, error, auc = sparsification(counts, rows[:, column])
-            bins = (self.errors if measure == "mae" else self.depth_errors)[index]
-            oracle_d, oracle_e, auc_opt = sparsification(bins[:, 0], bins[:, 1])
         else:
-            raise ConfigurationError(f"no confidence measure '{measure}' in these sums")
+            density, error, auc = sparsification(counts, rows[:, column])
+            bins = (self.errors if column == k.LEVEL_SUM_E else self.depth_errors)[index]
+            oracle_d, oracle_e, auc_opt = sparsification(bins[:, 0], bins[:, 1])
+        scale = _frame_measure(measure).scale
         return Curve(
             density, error * scale, auc * scale, auc_opt * scale, oracle_d, oracle_e * scale
         )
@@ -323,7 +322,7 @@ class ConfidenceSums:
         total = self.sums[index, :, k.LEVEL_N].sum()
         kept = rows[:, k.LEVEL_N].sum()
         curve_column = self._column(measure)
-        scale = registry.BY_NAME["bad_X" if bad_threshold(measure) else measure].scale
+        scale = _frame_measure(measure).scale
         density = float(kept / total) if total > 0 else math.nan
         error = float(rows[:, curve_column].sum() / kept * scale) if kept > 0 else math.nan
         return density, error
@@ -376,6 +375,8 @@ class ConfidenceSums:
         columns = {"d1": k.LEVEL_D1, "mae": k.LEVEL_SUM_E, "mae_z": k.LEVEL_SUM_EZ}
         if measure not in columns:
             raise ConfigurationError(f"no confidence measure '{measure}' in these sums")
+        if measure == "mae_z" and not self.depth:
+            raise ConfigurationError("mae_z needs the camera (focal length and baseline)")
         return columns[measure]
 
 
