@@ -19,6 +19,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from dispeval_ros.core import ModelResult, Scores, evaluate_models
+from dispeval_ros.core.confidence import ConfidenceSums
 from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.lidar_drift import DriftOptions, DriftSums, drift_entry
 from dispeval_ros.core.measures import GT_FREE_PREFIX, HIGHER_IS_BETTER, applies
@@ -85,6 +86,22 @@ class SequenceSummary:
         """The JSON ``flicker`` entry: what it is, per method its windows and ``gtfree:`` values."""
         return None if self.flicker is None else flicker_entry(self.flicker)
 
+    confidence: dict[str, tuple[int, str, ConfidenceSums]] | None = None
+    """Per method with a confidence map: its frames, preset and sums pooled (``confidences``);
+    None: not recorded."""
+
+    def confidence_dict(self) -> dict[str, Any] | None:
+        """The JSON ``confidence`` entry: per method its frames, preset and curves by criterion.
+
+        The curves' entries are ``eval --confidence``'s (:meth:`ConfidenceSums.summary`).
+        """
+        if self.confidence is None:
+            return None
+        return {
+            method: {"frames": frames, "preset": preset, "criteria": sums.summary()}
+            for method, (frames, preset, sums) in self.confidence.items()
+        }
+
     def egomotion_dict(self) -> dict[str, Any] | None:
         """The JSON ``egomotion`` entry: per method its pairs, values by ``gtfree:`` criterion."""
         if self.motion is None:
@@ -125,6 +142,8 @@ class RunSummary:
     """Whether the run scored the ego-motion residual of its pairs."""
     flicker: bool = False
     """Whether the run scored flicker windows."""
+    confidence: bool = False
+    """Whether the run scored confidence maps."""
 
     def benchmark_document(self) -> dict[str, Any]:
         """The timing in ros2_benchmark's result-JSON style: a section per sequence and method.
@@ -162,6 +181,7 @@ class RunSummary:
                         else {}
                     ),
                     **({"flicker": s.flicker_dict()} if self.flicker else {}),
+                    **({"confidence": s.confidence_dict()} if self.confidence else {}),
                 }
                 for s in self.sequences
             ],
@@ -288,6 +308,14 @@ def sequence_flicker(
     return reader(sequence) if callable(reader) else None
 
 
+def sequence_confidence(
+    store: object, sequence: str
+) -> dict[str, tuple[int, str, ConfidenceSums]] | None:
+    """Per method, its confidence sums in ``sequence`` (None: not recorded, or live totals)."""
+    reader = getattr(store, "confidence", None)
+    return reader(sequence) if callable(reader) else None
+
+
 def sequence_pairs(store: object, sequence: str) -> dict[str, PairScores] | None:
     """Per method, its pairs in ``sequence`` pooled (None: not recorded, or live totals)."""
     reader = getattr(store, "pairs", None)
@@ -375,6 +403,7 @@ def summarize(
                 motion,
                 sequence_drift(store, sequence),
                 sequence_flicker(store, sequence),
+                sequence_confidence(store, sequence),
             )
         )
         if names:
@@ -391,6 +420,8 @@ def summarize(
     egomotion = egomotion or any(s.motion for s in summaries)
     flicker = bool(config().get("flicker")) if callable(config) else False
     flicker = flicker or any(s.flicker for s in summaries)
+    confidence = bool(config().get("confidences")) if callable(config) else False
+    confidence = confidence or any(s.confidence for s in summaries)
     return RunSummary(
         granularity,
         list(measures),
@@ -401,6 +432,7 @@ def summarize(
         temporal,
         egomotion,
         flicker,
+        confidence,
     )
 
 

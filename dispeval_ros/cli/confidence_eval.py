@@ -22,29 +22,16 @@ if TYPE_CHECKING:
     from dispeval_ros.core.evaluator import Evaluator, Reference
 
 OPTION = "--confidence"
+PRESET_OPTION = "--confidence-preset"
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     """``--confidence NAME=FILE`` and ``--confidence-preset [NAME=]PRESET`` (off by default)."""
-    from dispeval_ros.core.confidence import DEFAULT_PRESET, PRESETS
-
     group = parser.add_argument_group("confidence maps (sparsification, AUC, AUSE)")
-    group.add_argument(
-        OPTION,
-        action="append",
-        default=[],
-        metavar="NAME=FILE",
-        help="the confidence map of the estimate NAME (PNG 8/16 bit, PFM, NPY, TIFF; read "
-        "unscaled): its sparsification curves, AUC, optimal AUC and AUSE by criterion",
-    )
-    group.add_argument(
-        "--confidence-preset",
-        action="append",
-        default=[],
-        metavar="[NAME=]PRESET",
-        help=f"the confidences' convention: {', '.join(PRESETS)}, or higher:LOW:HIGH / "
-        f"lower:LOW:HIGH (default {DEFAULT_PRESET}); NAME=PRESET for one method only",
-    )
+    add_input_options(
+        group, "NAME=FILE", "the confidence map of the estimate NAME (PNG 8/16 bit, PFM, NPY, "
+        "TIFF; read unscaled)",
+    )  # fmt: skip
     group.add_argument(
         "--confidence-plot",
         type=Path,
@@ -52,6 +39,53 @@ def add_options(parser: argparse.ArgumentParser) -> None:
         help="also draw each method's sparsification curves and the oracle's on the criterion "
         "'all' as a PNG (needs matplotlib; --criteria must include all)",
     )
+
+
+def add_input_options(group: argparse._ArgumentGroup, metavar: str, what: str) -> None:
+    """``--confidence METAVAR`` (a file for eval, a topic for bags and live) and its presets."""
+    from dispeval_ros.core.confidence import DEFAULT_PRESET, PRESETS
+
+    group.add_argument(
+        OPTION,
+        action="append",
+        default=[],
+        metavar=metavar,
+        help=f"{what}: its sparsification curves, AUC, optimal AUC and AUSE by criterion; "
+        "repeatable",
+    )
+    group.add_argument(
+        PRESET_OPTION,
+        action="append",
+        default=[],
+        metavar="[NAME=]PRESET",
+        help=f"the confidences' convention: {', '.join(PRESETS)}, or higher:LOW:HIGH / "
+        f"lower:LOW:HIGH (default {DEFAULT_PRESET}); NAME=PRESET for one method only",
+    )
+
+
+def preset_texts(args: argparse.Namespace) -> tuple[str, dict[str, str]]:
+    """``--confidence-preset`` as (the default for every method, {method: its own})."""
+    from dispeval_ros.core.confidence import DEFAULT_PRESET
+
+    default, own = DEFAULT_PRESET, {}
+    for spec in args.confidence_preset:
+        if "=" in spec:
+            name, text = _split(spec, PRESET_OPTION)
+            own[name] = text
+        else:
+            default = spec
+    return default, own
+
+
+def stream_presets(args: argparse.Namespace, confidences: Mapping[str, str]) -> dict[str, str]:
+    """Each ``--confidence`` method's preset text (others named are the configuration's to refuse).
+
+    Presets without ``--confidence``: one line.
+    """
+    if args.confidence_preset and not confidences:
+        raise ConfigurationError(f"{PRESET_OPTION} needs {OPTION} NAME=TOPIC")
+    default, own = preset_texts(args)
+    return {name: own.get(name, default) for name in confidences} | own
 
 
 def _split(spec: str, option: str) -> tuple[str, str]:
@@ -76,7 +110,7 @@ def configuration(args: argparse.Namespace) -> dict[str, object]:
 
 def plan(args: argparse.Namespace, methods: Sequence[str]) -> dict[str, tuple[Path, Any]]:
     """Each method's confidence file and preset (one line if a name or preset is wrong)."""
-    from dispeval_ros.core.confidence import DEFAULT_PRESET, parse_preset
+    from dispeval_ros.core.confidence import parse_preset
 
     if not args.confidence:
         if args.confidence_preset or args.confidence_plot is not None:
@@ -84,13 +118,9 @@ def plan(args: argparse.Namespace, methods: Sequence[str]) -> dict[str, tuple[Pa
                 "--confidence-preset and --confidence-plot need --confidence NAME=FILE"
             )
         return {}
-    default, own = parse_preset(DEFAULT_PRESET), {}
-    for spec in args.confidence_preset:
-        if "=" in spec:
-            name, text = _split(spec, "--confidence-preset")
-            own[name] = parse_preset(text)
-        else:
-            default = parse_preset(spec)
+    default_text, texts = preset_texts(args)
+    default = parse_preset(default_text)
+    own = {name: parse_preset(text) for name, text in texts.items()}
     chosen: dict[str, tuple[Path, ConfidencePreset]] = {}
     for spec in args.confidence:
         name, path = _split(spec, OPTION)

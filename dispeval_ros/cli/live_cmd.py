@@ -98,6 +98,9 @@ def run_command(args: argparse.Namespace) -> int:
     if args.queue_size < 1:
         raise ConfigurationError(f"--queue-size must be at least 1, got {args.queue_size}")
     config = streams.core_config(args, "live streams")  # also checks the objective measures
+    from dispeval_ros.stream.config import refuse_live_confidences
+
+    refuse_live_confidences(config, streams.field_names(args.gt_cloud is not None))
     mount = odometry_mount(args)
 
     from dispeval_ros.dds.evaluator import warm_up

@@ -84,6 +84,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="with --static: uniform integer noise of ±G grey levels per pixel, image and frame "
         f"(default {DEFAULT_SENSOR_NOISE})",
     )
+    parser.add_argument(
+        "--confidence",
+        action="store_true",
+        help="also each OpenCV method's 8-bit left-right consistency confidence (mono8, higher "
+        "is better) on /stereo/NAME/confidence, for dispeval bag --confidence NAME=TOPIC",
+    )
     parser.add_argument("--json", action="store_true", help="print what was written as JSON")
     parser.set_defaults(run=run)
 
@@ -163,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
             compress=args.compress,
             progress=(lambda n: progress.update(n, total, n)) if total else None,
             estimates=estimates,
+            confidence=args.confidence,
         )
     except BaseException:  # a later frame failed, or Ctrl-C: no half-written bag
         _remove(args.output)
@@ -177,6 +184,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {plural(count, 'frame')} to {args.output} ({args.storage})")
         print(wrapped(f"ground truth: {_ground_truth(summary)}"))
         print(wrapped("methods: " + ", ".join(f"{k}={v}" for k, v in methods.items())))
+        confidences = summary.get("confidences")
+        if isinstance(confidences, dict):
+            print(
+                wrapped(
+                    "confidence maps (preset "
+                    f"{summary['confidence_preset']}): "
+                    + ", ".join(f"{k}={v}" for k, v in confidences.items())
+                )
+            )
         if "gt_cloud" in summary:
             motion = (
                 f"; ego-motion on {summary['tf']} (odom → base_link)" if "tf" in summary else ""

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dispeval_ros.cli import common
+from dispeval_ros.cli import common, confidence_eval
 from dispeval_ros.core.objectives import (
     default_objective_measures,
     is_egomotion_measure,
@@ -95,6 +95,12 @@ def add_stream_options(
         help="a method's right-view DisparityImage topic, for its left-right inconsistency (lrc)",
     )
     common.add_gt_free_criteria_option(topics)
+    confidence_eval.add_input_options(
+        parser.add_argument_group("confidence maps (sparsification, AUC, AUSE)"),
+        "NAME=TOPIC",
+        "a method's confidence map, a sensor_msgs/Image topic joined by stamp with its estimate "
+        "(needs a ground truth)",
+    )
     tolerance_ms = core_default("tolerance_ns") / _NS_PER_MS
     topics.add_argument(
         "--tolerance",
@@ -166,6 +172,8 @@ def add_flicker_option(group: argparse._ArgumentGroup) -> None:
 _NAMES = {
     "methods": "--method",
     "right_views": "--right-view",
+    "confidences": "--confidence",
+    "confidence_presets": "--confidence-preset",
     "gt_kind": "--gt-kind",
     "left_info_topic": "--camera-info LEFT",
     "right_info_topic": "--camera-info RIGHT",
@@ -232,8 +240,11 @@ def core_config(args: argparse.Namespace, what: str) -> CoreConfig:
         from dispeval_ros.io.lidar import read_extrinsic
 
         extrinsic = tuple(float(v) for v in read_extrinsic(args.extrinsic).reshape(-1))
+    confidences = _methods(args.confidence, "confidences", names)
     config = CoreConfig(
         methods=_methods(args.method, "methods", names),
+        confidences=confidences,
+        confidence_presets=confidence_eval.stream_presets(args, confidences),
         gt_topic=args.gt_cloud if cloud else (args.gt if has_gt else args.left_image),
         gt_kind="pointcloud" if cloud else (args.gt_kind if has_gt else "none"),
         left_image_topic=args.left_image,

@@ -344,6 +344,22 @@ FLICKER_MASKED = ("n_missing", "n_edge", "n_moving")
 """The masks flicker applies (an estimate missing in a frame, a depth edge, a changing image)."""
 
 
+def confidence_text(confidence: Mapping[str, Any] | None) -> str:
+    """A sequence's confidence curves: method → (frames, preset, pooled sums), or why none."""
+    from dispeval_ros.cli import confidence_eval
+
+    if confidence is None:
+        return wrapped("\nconfidence: not recorded (results older than it)")
+    if not confidence:
+        return wrapped("\nconfidence: no frame with both an estimate and its confidence map")
+    heading = "; ".join(
+        f"{method}: {frames} frames, preset {preset}"
+        for method, (frames, preset, _) in confidence.items()
+    )
+    summaries = {method: sums.summary() for method, (_, _, sums) in confidence.items()}
+    return wrapped(f"\nconfidence ({heading})") + "\n" + confidence_eval.text(summaries)
+
+
 def flicker_text(flicker: Mapping[str, Any] | None) -> str:
     """A sequence's flicker (``flicker``): method → (windows, frames, pooled sums), or why none."""
     if flicker is None:
@@ -404,6 +420,8 @@ def run_summary_text(summary: Any, problems: Sequence[Any] = ()) -> str:
                 parts.append("\n" + drift_text(options, pooled, pairs))
         if getattr(summary, "flicker", False):
             parts.append(flicker_text(sequence.flicker))
+        if getattr(summary, "confidence", False):
+            parts.append(confidence_text(sequence.confidence))
         if sequence.scores:
             first = next(iter(sequence.scores.values()))
             measures = [m for m in SEQUENCE_MEASURES if m == "density" or m in first.measures]

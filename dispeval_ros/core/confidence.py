@@ -49,7 +49,7 @@ class ConfidencePreset:
 
     def text(self) -> str:
         """The preset as written on a command line (``higher:0:1`` for a given range)."""
-        if self.name in PRESETS:
+        if PRESETS.get(self.name) == self:  # a named preset as it is (not higher:LOW:HIGH)
             return self.name
         return f"{'higher' if self.higher_is_better else 'lower'}:{self.low:g}:{self.high:g}"
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from dispeval_ros.core.confidence import ConfidenceSums
     from dispeval_ros.core.egomotion import TemporalSums
     from dispeval_ros.core.lidar_drift import DriftSums
     from dispeval_ros.core.measures import Scores
@@ -23,6 +24,7 @@ __all__ = [
     "FrameScores",
     "FrameTiming",
     "MatchCounts",
+    "PooledConfidence",
     "Problem",
 ]
 
@@ -96,6 +98,23 @@ class FrameFlicker:
     method: str
     frames: int
     sums: TemporalSums
+
+
+@dataclass(frozen=True)
+class PooledConfidence:
+    """One method's confidence sums pooled over ``frames`` frames, ``start`` to ``stamp``.
+
+    A unit of work stores one per method (the sums of its frames added: exact, as the curves
+    of the sequence are those of its rows added); ``preset`` is the convention they were read in.
+    """
+
+    sequence: str
+    start: int
+    stamp: int
+    method: str
+    frames: int
+    preset: str
+    sums: ConfidenceSums
 
 
 @dataclass(frozen=True)

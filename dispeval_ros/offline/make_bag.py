@@ -40,6 +40,7 @@ from dispeval_ros.io.scenes import list_frames
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.testbed import StereoFrame, StereoMethod, default_methods, make_driving_sequence
 from dispeval_ros.testbed.lidar import LidarModel, lidar_to_camera, rig_motion, simulate_scan
+from dispeval_ros.testbed.methods import left_right_confidence
 from dispeval_ros.testbed.scene import driving_setup, driving_world_at
 
 LEFT_IMAGE = "/stereo/left/image_rect"
@@ -63,6 +64,15 @@ START_NS = 1_700_000_000_000_000_000
 def disparity_topic(method: str) -> str:
     """Where a method's DisparityImage goes."""
     return f"/stereo/{method}/disparity"
+
+
+def confidence_topic(method: str) -> str:
+    """Where a method's confidence map goes (``--confidence``: mono8, higher is better)."""
+    return f"/stereo/{method}/confidence"
+
+
+CONFIDENCE_PRESET = "higher"
+"""The convention of the confidences make-bag writes (mono8, 0–255, higher is better)."""
 
 
 @dataclass(frozen=True)
@@ -368,6 +378,7 @@ def write_bag(
     progress: Callable[[int], None] | None = None,
     estimates: Sequence[Estimates] = (),
     delay: Callable[[int, int], int | None] | None = None,
+    confidence: bool = False,
 ) -> dict[str, object]:
     """Write every frame (images, CameraInfo, GT, each method's disparity); returns a summary.
 
@@ -375,6 +386,9 @@ def write_bag(
     :attr:`BagFrame.number`, else the frame's position). ``delay(order, index)``: how long
     after its stamp the ``order``-th source's map of frame ``index`` is logged (ns), None to
     leave it out (a frame that source missed); default :func:`method_latency_ns` of order.
+    ``confidence``: each OpenCV method's left-right confidence too
+    (:func:`~dispeval_ros.testbed.methods.left_right_confidence`, on :func:`confidence_topic`,
+    logged with its disparity).
     """
     written = 0
     clouds = 0
@@ -404,6 +418,8 @@ def write_bag(
                     bag.add_topic(GT_TOPIC, "sensor_msgs/msg/Image")
                 for name in _names(chosen, estimates):
                     bag.add_topic(disparity_topic(name), "stereo_msgs/msg/DisparityImage")
+                for method in chosen if confidence else ():
+                    bag.add_topic(confidence_topic(method.name), "sensor_msgs/msg/Image")
                 registered = True
             synthetic = START_NS + round(frame.stamp * 1e9)
             stamps = frame.stamps or StreamStamps(synthetic, synthetic, synthetic, synthetic)
@@ -476,6 +492,11 @@ def write_bag(
                     doffs=camera.doffs if camera else 0.0,
                 )
                 bag.write(disparity_topic(name), stamp + late, message)
+                if confidence and order < len(chosen):
+                    rating = left_right_confidence(chosen[order], frame.left, frame.right,
+                                                   disparity)  # fmt: skip
+                    image = image_to_msg(typestore, rating, stamp, "stereo_left", "mono8")
+                    bag.write(confidence_topic(name), stamp + late, image)
             written += 1
             if progress is not None:
                 progress(written)
@@ -498,6 +519,14 @@ def write_bag(
             else {}
         ),
         "estimates": {e.name: str(e.folder) for e in estimates},
+        **(
+            {
+                "confidences": {m.name: confidence_topic(m.name) for m in chosen or ()},
+                "confidence_preset": CONFIDENCE_PRESET,
+            }
+            if confidence
+            else {}
+        ),
         "gt": GT_TOPIC if has_gt else None,
         **({"gt_source": gt_source} if gt_source else {}),
         "camera_info": [LEFT_INFO, RIGHT_INFO],

@@ -34,6 +34,7 @@ from dispeval_ros.core.records import (
     FrameScores,
     FrameTiming,
     MatchCounts,
+    PooledConfidence,
     Problem,
 )
 from dispeval_ros.errors import DispevalError, InputError
@@ -47,6 +48,7 @@ from dispeval_ros.offline.threads import (  # noqa: F401 (executors and tests im
     scoring_pool,
     scoring_threads,
 )
+from dispeval_ros.stream.confidence import ConfidencePool
 from dispeval_ros.stream.config import TF_STATIC_TOPIC, TF_TOPIC
 from dispeval_ros.stream.core import CoreConfig, EvaluationCore, FrameResult
 from dispeval_ros.stream.flicker import FlickerScore
@@ -98,6 +100,8 @@ class UnitResult:
     """With ``egomotion``: the ego-motion residuals of those pairs."""
     flicker: list[FrameFlicker] = field(default_factory=list)
     """With ``flicker``: the windows of the frames this unit kept (never spanning units)."""
+    confidence: list[PooledConfidence] = field(default_factory=list)
+    """With ``confidences``: per method, its confidence sums over the frames this unit kept."""
     messages: int = 0
     kept: dict[int, int] = field(default_factory=dict)
     """Stamp → arrival of the GT frames this unit kept (scored or dropped)."""
@@ -134,6 +138,7 @@ class UnitRows:
             result.pairs,
             result.motion,
             result.flicker,
+            result.confidence,
         )
         return cls(
             unit,
@@ -388,6 +393,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     failed: Counter[str] = Counter()
     scoring: deque[tuple[FrameSet[Any, Any], Future[FrameResult], bool]] = deque()
     before: list[FrameSet[Any, Any]] = []  # the last frame not kept, for the pair it begins
+    confidence = ConfidencePool(unit.sequence, config.confidence_presets)
 
     def collect(frame_set: FrameSet[Any, Any], frame: FrameResult, keep: bool = True) -> None:
         core.pair(frame)  # in the join's order, kept or not (see stream/pairs.py)
@@ -406,6 +412,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
             FrameTiming(unit.sequence, frame.stamp, method, frame.sent[method], arrival)
             for method, arrival in frame.arrivals.items()
         )
+        confidence.add(frame)
         for method, scores in frame.scores.items():
             result.frames.append(FrameScores(unit.sequence, frame.stamp, method, scores))
             matched[method] += 1
@@ -474,6 +481,7 @@ def evaluate_unit(config: CoreConfig, unit: Unit, threads: int = 1) -> UnitResul
     if windows is not None:
         result.flicker.extend(flicker_records(unit.sequence, windows.windows))
         result.problems.extend(Problem(unit.sequence, None, m, t) for m, t in windows.problems)
+    result.confidence = confidence.records()
     kept = [event for event in core.joiner.events or [] if event.arrival in inside]
     events = Counter((event.kind, event.method) for event in kept)
     result.kept.update((e.stamp, e.arrival) for e in kept if e.kind == "dropped")

@@ -117,6 +117,26 @@ EVALUATOR_PARAMETERS: tuple[Param, ...] = (
         read_only=False,
     ),
     Param(
+        "confidences",
+        STRING_ARRAY,
+        (),
+        "Confidence maps (sensor_msgs/msg/Image) of some methods, each NAME:TOPIC, joined by "
+        "stamp with their estimates: sparsification curves, AUC and AUSE by criterion (needs a "
+        "ground truth). Refused by the live node for now (its sums are not published yet: "
+        "record the topics and run dispeval bag). Read at start only",
+        "NAME of a method in methods; topics distinct from every other topic",
+        read_only=False,
+    ),
+    Param(
+        "confidence_presets",
+        STRING_ARRAY,
+        (),
+        "Each confidence's convention, NAME:PRESET (zed, realsense, vpi, wls, higher, lower, "
+        "higher:LOW:HIGH, lower:LOW:HIGH); a method not named takes higher. Read at start only",
+        "NAME of a method in confidences",
+        read_only=False,
+    ),
+    Param(
         "gt_free_criteria",
         STRING_ARRAY,
         tuple(core_default("gt_free_criteria")),

@@ -35,7 +35,7 @@ from dispeval_ros.ros.param_table import (
     ParamValue,
 )
 from dispeval_ros.stream.alarms import AlarmThresholds
-from dispeval_ros.stream.config import FieldNames, core_default
+from dispeval_ros.stream.config import FieldNames, core_default, refuse_live_confidences
 from dispeval_ros.stream.core import CoreConfig
 from dispeval_ros.stream.summarizer import SummarizerConfig
 from dispeval_ros.stream.topics import NAMESPACE
@@ -75,6 +75,8 @@ ROS_NAMES = FieldNames(
     {
         "methods": "methods",
         "right_views": "right_views",
+        "confidences": "confidences",
+        "confidence_presets": "confidence_presets",
         "gt_topic": "gt_topic",
         "gt_kind": "gt_kind",
         "left_info_topic": "left_camera_info",
@@ -117,6 +119,19 @@ def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str,
     return methods
 
 
+def _named_presets(items: Sequence[str]) -> dict[str, str]:
+    """``confidence_presets``: ``NAME:PRESET`` strings → {name: preset} (``higher:0:1`` too)."""
+    pairs = []
+    for item in items:
+        name, sep, preset = (part.strip() for part in item.partition(":"))
+        if not sep or not name or not preset:
+            raise ConfigurationError(
+                f"parameter confidence_presets: '{item}' is not NAME:PRESET (e.g. zed_depth:zed)"
+            )
+        pairs.append((name, preset))
+    return ROS_NAMES.unique(pairs, "confidence_presets")
+
+
 def lidar_extrinsic(text: str, parameter: str = "lidar_extrinsic") -> tuple[float, ...] | None:
     """The ``lidar_extrinsic`` parameter: None (use /tf_static) or the 4×4 matrix's 16 numbers.
 
@@ -142,6 +157,13 @@ def lidar_extrinsic(text: str, parameter: str = "lidar_extrinsic") -> tuple[floa
 
 def core_config(values: Mapping[str, Any]) -> CoreConfig:
     """The evaluation core's configuration from the evaluator's parameter values."""
+    config = _core_config(values)
+    refuse_live_confidences(config, ROS_NAMES)
+    return config
+
+
+def _core_config(values: Mapping[str, Any]) -> CoreConfig:
+    """:func:`core_config` before the live front end's own checks."""
     gt_topic = str(values["gt_topic"]).strip()
     kind = str(values["gt_kind"])
     left_image = str(values.get("left_image_topic", "")).strip()
@@ -153,6 +175,8 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
             )
         gt_topic = left_image
     right_views = tuple(values.get("right_views", ()))
+    confidences = tuple(values.get("confidences", ()))
+    presets = tuple(values.get("confidence_presets", ()))
     gt_free_criteria = tuple(values.get("gt_free_criteria", core_default("gt_free_criteria")))
     scale = float(values["gt_scale"])
     if not (math.isfinite(scale) and scale >= 0):
@@ -184,6 +208,8 @@ def core_config(values: Mapping[str, Any]) -> CoreConfig:
         left_image_topic=left_image or None,
         right_image_topic=right_image or None,
         right_views=parse_methods(right_views, "right_views") if right_views else {},
+        confidences=parse_methods(confidences, "confidences") if confidences else {},
+        confidence_presets=_named_presets(presets),
         gt_free_criteria=gt_free_criteria,
         temporal=str(values.get("temporal", "")).strip() or None,
         pair_gap_ns=_seconds_to_ns(

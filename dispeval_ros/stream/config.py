@@ -17,6 +17,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import InitVar, dataclass, field
 from typing import Any
 
+from dispeval_ros.core.confidence import DEFAULT_PRESET, ConfidenceScorer, parse_preset
 from dispeval_ros.core.criteria import LIDAR_DEPTH_RANGES
 from dispeval_ros.core.egomotion import EgoMotionOptions
 from dispeval_ros.core.evaluator import DEFAULT_CRITERIA, Evaluator
@@ -46,8 +47,10 @@ measures are scored."""
 LEFT_IMAGE_KEY = "<left image>"
 RIGHT_IMAGE_KEY = "<right image>"
 RIGHT_VIEW_KEY = "<right view> "
-"""Join keys of the images and of each method's right-view disparity (``RIGHT_VIEW_KEY + name``):
-joined with the ground truth like a method, never counted as one."""
+CONFIDENCE_KEY = "<confidence> "
+"""Join keys of the images, of each method's right-view disparity (``RIGHT_VIEW_KEY + name``)
+and of its confidence map (``CONFIDENCE_KEY + name``): joined with the ground truth like a
+method, never counted as one."""
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,8 @@ class FieldNames:
 _NEUTRAL = {
     "methods": "the methods",
     "right_views": "the right views",
+    "confidences": "the confidence topics",
+    "confidence_presets": "the confidence presets",
     "gt_topic": "the ground-truth topic",
     "gt_kind": "the ground-truth kind",
     "left_info_topic": "the left CameraInfo topic",
@@ -134,6 +139,12 @@ class CoreConfig:
     right_views: Mapping[str, str] = field(default_factory=dict)
     """Method → its right-view DisparityImage topic (for lrc); optional per method."""
     gt_free_criteria: Sequence[str] = DEFAULT_GT_FREE_CRITERIA
+    confidences: Mapping[str, str] = field(default_factory=dict)
+    """Method → its confidence map's sensor_msgs/Image topic: sparsification curves, AUC and
+    AUSE by criterion (:mod:`~dispeval_ros.core.confidence`); optional per method."""
+    confidence_presets: Mapping[str, str] = field(default_factory=dict)
+    """Method → its confidence's convention (a preset, ``higher:LOW:HIGH``…); a method of
+    :attr:`confidences` not named here takes :data:`~dispeval_ros.core.confidence.DEFAULT_PRESET`."""
     temporal: str | None = None
     """The temporal preset the pairs of consecutive GT frames are scored under (see
     :mod:`~dispeval_ros.stream.pairs`); None: no pair is scored."""
@@ -159,11 +170,11 @@ class CoreConfig:
         images = (self.left_image_topic, self.right_image_topic)
         others = [
             t for t in images if t and not (self.gt_kind == "none" and t == self.gt_topic)
-        ] + list(self.right_views.values())
+        ] + [*self.right_views.values(), *self.confidences.values()]
         if len(set(others)) != len(others) or set(others) & {self.gt_topic, *topics}:
             raise ConfigurationError(
-                "the image and right-view topics must differ from each other, from the "
-                "ground-truth topic and from the methods' topics"
+                "the image, right-view and confidence topics must differ from each other, from "
+                "the ground-truth topic and from the methods' topics"
             )
         if self.gt_topic in topics:
             raise ConfigurationError(
@@ -178,10 +189,12 @@ class CoreConfig:
             raise ConfigurationError(
                 "right-view disparities (for lrc) need the left and right image topics"
             )
+        self._check_confidences(names or NEUTRAL_NAMES)
         reserved = [
             m
             for m in self.methods
-            if m in (LEFT_IMAGE_KEY, RIGHT_IMAGE_KEY) or m.startswith(RIGHT_VIEW_KEY)
+            if m in (LEFT_IMAGE_KEY, RIGHT_IMAGE_KEY)
+            or m.startswith((RIGHT_VIEW_KEY, CONFIDENCE_KEY))
         ]
         if reserved:
             raise ConfigurationError(f"method name '{reserved[0]}' is reserved")
@@ -202,6 +215,30 @@ class CoreConfig:
             CloudFilter.parse(self.cloud_filter)
             if self.extrinsic is not None:
                 rigid_matrix(self.extrinsic, "the LiDAR extrinsic")
+
+    def _check_confidences(self, names: FieldNames) -> None:
+        """Confidences of known methods, scored against a ground truth, in known conventions."""
+        for field_name in ("confidences", "confidence_presets"):
+            unknown = sorted(set(getattr(self, field_name)) - set(self.methods))
+            if unknown:
+                raise names.error(
+                    f"{names.of(field_name)}: no method is named {', '.join(unknown)} (methods: "
+                    f"{', '.join(self.methods)})",
+                    field_name,
+                )
+        extra = sorted(set(self.confidence_presets) - set(self.confidences))
+        if extra:
+            raise names.error(
+                f"{names.of('confidence_presets')}: {', '.join(extra)} has no confidence topic "
+                f"(give it in {names.of('confidences')})",
+                "confidence_presets",
+            )
+        if self.confidences and not self.has_gt:
+            raise names.error(
+                f"{names.of('confidences')}: sparsification curves rank the true error, so they "
+                "need a ground truth (gt_kind is none)",
+                "confidences",
+            )
 
     def _check_temporal(self, names: FieldNames) -> None:
         """A known preset, a positive pair gap, ground truth to pair, a camera to move."""
@@ -275,6 +312,7 @@ class CoreConfig:
             self.right_image_topic,
             *self.methods.values(),
             *self.right_views.values(),
+            *self.confidences.values(),
         }
         for info in ("left_info_topic", "right_info_topic"):
             topic = getattr(self, info)
@@ -296,6 +334,8 @@ class CoreConfig:
             "criteria": (criteria,) if isinstance(criteria, str) else tuple(criteria),
             "measures": None if self.measures is None else tuple(self.measures),
             "right_views": dict(self.right_views),
+            "confidences": dict(self.confidences),
+            "confidence_presets": confidence_presets(self.confidences, self.confidence_presets),
             "gt_free_criteria": tuple(self.gt_free_criteria),
             "extrinsic": None if self.extrinsic is None else tuple(self.extrinsic),
         }
@@ -342,6 +382,8 @@ class CoreConfig:
             left_image_topic=left_image,
             right_image_topic=right_image,
             right_views=dict(record.get("right_views") or {}),
+            confidences=dict(record.get("confidences") or {}),
+            confidence_presets=dict(record.get("confidence_presets") or {}),
             **options,
         )
 
@@ -375,6 +417,7 @@ class CoreConfig:
         if self.gt_free and self.right_image_topic is not None:
             keys[RIGHT_IMAGE_KEY] = self.right_image_topic
         keys.update({RIGHT_VIEW_KEY + name: topic for name, topic in self.right_views.items()})
+        keys.update({CONFIDENCE_KEY + name: topic for name, topic in self.confidences.items()})
         return keys
 
     @property
@@ -404,6 +447,7 @@ class CoreConfig:
             expected[self.left_image_topic] = IMAGE_TYPE
             expected[self.right_image_topic] = IMAGE_TYPE
         expected.update(dict.fromkeys(self.right_views.values(), DISPARITY_TYPE))
+        expected.update(dict.fromkeys(self.confidences.values(), IMAGE_TYPE))
         return expected
 
     def as_record(self) -> dict[str, object]:
@@ -444,6 +488,14 @@ class CoreConfig:
             ),
             **({"egomotion": True} if self.egomotion else {}),
             **({"flicker": self.flicker} if self.flicker else {}),
+            **(
+                {
+                    "confidences": dict(self.confidences),
+                    "confidence_presets": dict(self.confidence_presets),
+                }
+                if self.confidences
+                else {}
+            ),
         }
 
     def ground_truth_free(self) -> GroundTruthFree | None:
@@ -451,6 +503,13 @@ class CoreConfig:
         if not self.gt_free:
             return None
         return GroundTruthFree(self.gt_free_criteria, self.missing)
+
+    def confidence_scorers(self, evaluator: Evaluator) -> dict[str, ConfidenceScorer]:
+        """Each method with a confidence topic → its scorer (``evaluator``: the run's)."""
+        return {
+            method: ConfidenceScorer(evaluator, parse_preset(self.confidence_presets[method]))
+            for method in self.confidences
+        }
 
     def pair_stage(self) -> PairStage | None:
         """The stage scoring consecutive frames' pairs (None without ``temporal``)."""
@@ -486,6 +545,31 @@ class CoreConfig:
             boundary_mode="sparse",
             depth_ranges=LIDAR_DEPTH_RANGES,
         )
+
+
+LIVE_CONFIDENCE_REFUSAL = (
+    "confidence maps are scored from recordings only for now (dispeval bag): the live front "
+    "ends do not publish or store their curves' sums yet; record the topics and run dispeval bag"
+)
+"""Why ``dispeval live`` and the ROS evaluator refuse ``confidences`` (one place, one wording)."""
+
+
+def refuse_live_confidences(config: CoreConfig, names: FieldNames) -> None:
+    """A live front end's check: no ``confidences`` (their sums would be lost)."""
+    if config.confidences:
+        raise names.error(f"{names.of('confidences')}: {LIVE_CONFIDENCE_REFUSAL}", "confidences")
+
+
+def confidence_presets(
+    confidences: Mapping[str, str], presets: Mapping[str, str]
+) -> dict[str, str]:
+    """Every method of ``confidences`` → its preset written out (the default filled in).
+
+    A preset that is not one is a :class:`ConfigurationError` naming it (see
+    :func:`~dispeval_ros.core.confidence.parse_preset`).
+    """
+    written = {method: parse_preset(text).text() for method, text in presets.items()}
+    return {method: written.get(method, DEFAULT_PRESET) for method in confidences} | written
 
 
 def field_default(record: type, name: str) -> Any:

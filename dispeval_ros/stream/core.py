@@ -34,6 +34,7 @@ from dispeval_ros.io.messages import (
 from dispeval_ros.stream.clouds import cloud_disparity
 from dispeval_ros.stream.config import (
     CAMERA_INFO_TYPE,
+    CONFIDENCE_KEY,
     DISPARITY_TYPE,
     GT_KINDS,
     IMAGE_TYPE,
@@ -95,6 +96,8 @@ class EvaluationCore:
         GIL); None scores them one after the other. The results are the same."""
         self.evaluator = config.evaluator()
         self.gt_free = config.ground_truth_free()
+        self.confidence = config.confidence_scorers(self.evaluator)
+        """Method → its confidence scorer (``confidences``): curves' sums per frame."""
         self.pairs = config.pair_stage()
         """The pair stage (``temporal``): fed in the join's order by :meth:`pair`."""
         self.flicker = config.flicker_stage()
@@ -210,7 +213,17 @@ class EvaluationCore:
             if method in frame_set.arrivals:
                 result.arrivals[method] = frame_set.arrivals[method]
                 result.sent[method] = stamp
-        if not estimates:  # only images or right views arrived for this frame
+        for method in self.confidence:  # a confidence map joined without its estimate
+            if CONFIDENCE_KEY + method in frame_set.estimates and method not in estimates:
+                result.problems.append(
+                    (
+                        method,
+                        f"{self.config.confidences[method]} at {frame_set.stamp}: a confidence "
+                        f"map but no estimate on {self._topic(method)} for this frame; not "
+                        "scored",
+                    )
+                )
+        if not estimates:  # only images, right views or confidences arrived for this frame
             return result
         pair = self._image_pair(frame_set, result)
         if not self.config.has_gt:
@@ -272,6 +285,7 @@ class EvaluationCore:
             result.partition = part.partition or result.partition
             result.prepared.update(part.prepared)
             result.flicker_frames.update(part.flicker_frames)
+            result.confidence.update(part.confidence)
         return self._with_pair_input(result, reference, reference.camera, pair, infos)
 
     def _with_pair_input(
@@ -361,6 +375,8 @@ class EvaluationCore:
                 self._gt_free_scores(method, frame, frame_set, pair, reference.camera, part),
             )
             part.estimate_stamps[method] = stamp
+            if method in self.confidence:
+                self._score_confidence(method, frame, reference, frame_set, part)
             image = None if pair is None else pair.left
             self._prepare(method, frame.disparity, terms, image, part)
             if self.error_images:
@@ -370,6 +386,34 @@ class EvaluationCore:
             self._count_failed(method)
             part.problems.append((method, f"{self._topic(method)} at {stamp}: {error}"))
         return part
+
+    def _score_confidence(
+        self,
+        method: str,
+        frame: DisparityFrame,
+        reference: Reference,
+        frame_set: FrameSet[Any, Any],
+        part: FrameResult,
+    ) -> None:
+        """One estimate's confidence sums, or a problem (its other scores are kept)."""
+        topic = self.config.confidences[method]
+        entry = frame_set.estimates.get(CONFIDENCE_KEY + method)
+        if entry is None:
+            part.problems.append(
+                (
+                    method,
+                    f"{topic} at {frame_set.stamp}: no confidence map within "
+                    f"{self.config.tolerance_ns / 1e6:g} ms of this frame; its curves not scored",
+                )
+            )
+            return
+        try:
+            confidence = image_from_msg(entry[1], topic).array
+            part.confidence[method] = self.confidence[method].score(
+                reference, frame.disparity, confidence, **frame.scoring(reference.camera)
+            )
+        except DispevalError as error:
+            part.problems.append((method, f"{topic} at {entry[0]}: {error}; its curves not scored"))
 
     def _frame_camera(
         self,

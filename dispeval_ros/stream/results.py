@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dispeval_ros.core import Partition, Scores
+from dispeval_ros.core.confidence import ConfidenceSums
 from dispeval_ros.core.egomotion import MotionFrame
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.stream.flicker import FlickerInput, FlickerScore
@@ -43,6 +44,8 @@ class FrameResult:
     flicker: list[FlickerScore] = field(default_factory=list)
     """With ``flicker``, after :meth:`EvaluationCore.window`: the windows this frame closed
     (each names its first and last stamps; ended early by this frame: the frame before)."""
+    confidence: dict[str, ConfidenceSums] = field(default_factory=dict)
+    """With ``confidences``: per method scored with its confidence map, this frame's sums."""
     pair_input: PairInput | None = None  # for the pair stage, dropped once it ran
     prepared: dict[str, MethodPairInput] = field(default_factory=dict, repr=False)
     flicker_input: FlickerInput | None = None  # for the flicker stage, dropped once it ran

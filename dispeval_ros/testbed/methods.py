@@ -158,6 +158,33 @@ class StereoMethod:
         return disparity
 
 
+LRC_LEVELS_PER_PX = 32
+"""The left-right confidence drops by this many of its 255 levels per pixel of inconsistency."""
+
+
+def left_right_confidence(method: StereoMethod, left: np.ndarray, right: np.ndarray,
+                          disparity: np.ndarray) -> np.ndarray:  # fmt: skip
+    """An 8-bit confidence of ``disparity`` (the method's left view): left-right consistency.
+
+    The method also matches the mirrored pair (its right view); a pixel whose right-view
+    disparity at ``x − d`` differs by ``Δ`` px gets ``255 − 32·Δ`` (clipped at 0), higher is
+    better (Hu & Mordohai's LRC); 0 where either view has no estimate. Preset ``higher``.
+    """
+    mirrored = method.compute(np.ascontiguousarray(right[:, ::-1]),
+                              np.ascontiguousarray(left[:, ::-1]))  # fmt: skip
+    right_view = mirrored[:, ::-1]
+    height, width = disparity.shape
+    valid = disparity >= method.min_disparity
+    columns = np.arange(width)[None, :] - np.rint(np.where(valid, disparity, 0)).astype(np.int64)
+    inside = valid & (columns >= 0) & (columns < width)
+    rows = np.broadcast_to(np.arange(height)[:, None], disparity.shape)
+    other = right_view[rows, np.clip(columns, 0, width - 1)]
+    inside &= other >= method.min_disparity
+    gap = np.abs(disparity - other)
+    confidence = 255.0 - np.minimum(255.0, np.rint(gap * LRC_LEVELS_PER_PX))
+    return np.where(inside, confidence, 0.0).astype(np.uint8)
+
+
 def default_num_disparities(width: int) -> int:
     """Return OpenCV's numDisparities for images ``width`` px wide: ``16·⌈width/160⌉``.
 

@@ -12,12 +12,20 @@ from typing import TypeVar
 
 import numpy as np
 
+from dispeval_ros.core.confidence import ConfidenceSums
 from dispeval_ros.core.egomotion import TemporalSums
 from dispeval_ros.core.lidar_drift import DriftSums
 from dispeval_ros.core.measures import Scores, quantile_level
-from dispeval_ros.core.records import FrameFlicker, FrameTiming, MatchCounts, Problem
+from dispeval_ros.core.records import (
+    FrameFlicker,
+    FrameTiming,
+    MatchCounts,
+    PooledConfidence,
+    Problem,
+)
 from dispeval_ros.core.temporal import PairScores
 from dispeval_ros.errors import ConfigurationError, InputError
+from dispeval_ros.io.store.confidence import confidence_series, read_confidence_sums
 from dispeval_ros.io.store.flicker import flicker_series, read_flicker
 from dispeval_ros.io.store.lock import _FolderLock
 from dispeval_ros.io.store.pairs import (
@@ -31,6 +39,7 @@ from dispeval_ros.io.store.schema import (
     _BLOB,
     _FRAME_ORDER,
     _ORDERED_FRAMES,
+    CONFIDENCE_TABLE,
     DRIFT_TABLE,
     FLICKER_TABLE,
     MOTION_TABLE,
@@ -415,6 +424,22 @@ class ResultsReader:
         if not self.records_flicker():
             return None
         return read_flicker(self._db, str(self.path), sequence, self._names("methods"))
+
+    def records_confidence(self) -> bool:
+        """Whether confidence sums can be stored (a database older than them: no)."""
+        return has_table(self._db, CONFIDENCE_TABLE)
+
+    def confidence(self, sequence: str) -> dict[str, tuple[int, str, ConfidenceSums]] | None:
+        """Per method with a confidence: its frames, preset and pooled sums; None: not kept."""
+        if not self.records_confidence():
+            return None
+        return read_confidence_sums(self._db, str(self.path), sequence, self._names("methods"))
+
+    def confidence_series(self, sequence: str) -> dict[str, list[PooledConfidence]] | None:
+        """Per method, its units' pooled confidence sums one by one; None: not kept."""
+        if not self.records_confidence():
+            return None
+        return confidence_series(self._db, str(self.path), sequence)
 
     def flicker_series(self, sequence: str) -> dict[str, list[FrameFlicker]] | None:
         """Per method, its flicker windows one by one; None: not kept."""

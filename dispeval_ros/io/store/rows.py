@@ -15,9 +15,11 @@ from dispeval_ros.core.records import (
     FrameScores,
     FrameTiming,
     MatchCounts,
+    PooledConfidence,
     Problem,
 )
 from dispeval_ros.errors import ConfigurationError
+from dispeval_ros.io.store.confidence import confidence_rows
 from dispeval_ros.io.store.flicker import flicker_rows
 from dispeval_ros.io.store.pairs import drift_rows, motion_rows, pair_rows
 from dispeval_ros.io.store.schema import _BLOB, _Layout
@@ -40,6 +42,7 @@ class PreparedUnit:
     motion_rows: list[tuple[object, ...]] = field(default_factory=list)
     drift_rows: list[tuple[object, ...]] = field(default_factory=list)
     flicker_rows: list[tuple[object, ...]] = field(default_factory=list)
+    confidence_rows: list[tuple[object, ...]] = field(default_factory=list)
 
     @property
     def frames(self) -> int:
@@ -57,6 +60,7 @@ def prepare_unit(
     pairs: Sequence[FramePair] = (),
     motion: Sequence[FrameMotion] = (),
     flicker: Sequence[FrameFlicker] = (),
+    confidence: Sequence[PooledConfidence] = (),
 ) -> PreparedUnit:
     """The rows :meth:`ResultsStore.add_unit` writes for a unit (checked: one sequence, no twins)."""
     layout = _unit_layout(unit, frames)
@@ -100,6 +104,7 @@ def prepare_unit(
         motion_rows(sequence, unit, motion),
         drift_rows(sequence, unit, motion),
         flicker_rows(sequence, unit, flicker),
+        confidence_rows(sequence, unit, confidence),
     )
 
 

@@ -112,6 +112,26 @@ _INSERT_FLICKER = (
 )
 _SELECT_FLICKER = f"SELECT {_FLICKER_COLUMNS} FROM flicker_windows"
 
+CONFIDENCE_TABLE = "confidence_sums"
+_CONFIDENCE_COLUMNS = (
+    "sequence, start, method, stamp, frames, preset, layout, sums, errors, depth_errors, "
+    "counters, points"
+)
+_CONFIDENCE_SCHEMA = (
+    "CREATE TABLE IF NOT EXISTS confidence_sums (sequence TEXT NOT NULL, start INTEGER NOT "
+    "NULL, method TEXT NOT NULL, stamp INTEGER NOT NULL, frames INTEGER NOT NULL, preset TEXT "
+    "NOT NULL, layout TEXT NOT NULL, sums BLOB NOT NULL, errors BLOB NOT NULL, depth_errors "
+    "BLOB NOT NULL, counters BLOB NOT NULL, points BLOB NOT NULL, "
+    "PRIMARY KEY (sequence, start, method))"
+)
+"""Each method's confidence sums pooled over a unit's frames (``confidences``), ``start``
+and ``stamp`` its first and last frames' stamps; made with a new database as ``pairs``."""
+_INSERT_CONFIDENCE = (
+    f"INSERT INTO confidence_sums ({_CONFIDENCE_COLUMNS}) "
+    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"
+)
+_SELECT_CONFIDENCE = f"SELECT {_CONFIDENCE_COLUMNS} FROM confidence_sums"
+
 
 def has_table(connection: sqlite3.Connection, name: str) -> bool:
     """Whether the database holds table ``name`` (those added after the first schema)."""
@@ -350,7 +370,10 @@ def _initialise(connection: sqlite3.Connection, config: list[tuple[str, str]]) -
     """Schema, configuration and header marks in one transaction (a kill leaves it empty)."""
     connection.execute("BEGIN IMMEDIATE")
     try:
-        later = (_TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _DRIFT_SCHEMA, _FLICKER_SCHEMA)
+        later = (
+            _TIMING_SCHEMA, _PAIRS_SCHEMA, _MOTION_SCHEMA, _DRIFT_SCHEMA, _FLICKER_SCHEMA,
+            _CONFIDENCE_SCHEMA,
+        )  # fmt: skip
         for statement in (*_SCHEMA, *later):
             connection.execute(statement)
         connection.executemany(

@@ -16,6 +16,7 @@ from dispeval_ros.core.records import (
     FrameScores,
     FrameTiming,
     MatchCounts,
+    PooledConfidence,
     Problem,
 )
 from dispeval_ros.errors import ConfigurationError, InputError, ResultsConflictError
@@ -25,17 +26,20 @@ from dispeval_ros.io.store.rows import PreparedUnit, prepare_unit
 from dispeval_ros.io.store.schema import (
     _ADD_COUNTS,
     _BLOB,
+    _INSERT_CONFIDENCE,
     _INSERT_DRIFT,
     _INSERT_FLICKER,
     _INSERT_MOTION,
     _INSERT_PAIR,
     _INSERT_TIMING,
     _PROVENANCE_TABLE,
+    _SELECT_CONFIDENCE,
     _SELECT_DRIFT,
     _SELECT_FLICKER,
     _SELECT_MOTION,
     _SELECT_PAIRS,
     _SELECT_TIMING,
+    CONFIDENCE_TABLE,
     DRIFT_TABLE,
     FAILED_MARK,
     FLICKER_TABLE,
@@ -146,6 +150,7 @@ class ResultsWriter(ResultsReader):
         pairs: Sequence[FramePair] = (),
         motion: Sequence[FrameMotion] = (),
         flicker: Sequence[FrameFlicker] = (),
+        confidence: Sequence[PooledConfidence] = (),
     ) -> None:
         """Write one unit of work in one transaction and mark it done; a done unit is a no-op.
 
@@ -156,7 +161,18 @@ class ResultsWriter(ResultsReader):
         if self._written(sequence, unit, unit.endswith(FAILED_MARK)):
             return
         self.add_prepared(
-            prepare_unit(sequence, unit, frames, problems, counts, timing, pairs, motion, flicker)
+            prepare_unit(
+                sequence,
+                unit,
+                frames,
+                problems,
+                counts,
+                timing,
+                pairs,
+                motion,
+                flicker,
+                confidence,
+            )
         )
 
     def _written(self, sequence: str, unit: str, failure: bool) -> bool:
@@ -216,6 +232,12 @@ class ResultsWriter(ResultsReader):
                 (self.records_motion(), _INSERT_MOTION, prepared.motion_rows, "a motion pair"),
                 (self.records_drift(), _INSERT_DRIFT, prepared.drift_rows, "a drift pair"),
                 (self.records_flicker(), _INSERT_FLICKER, prepared.flicker_rows, "a window"),
+                (
+                    self.records_confidence(),
+                    _INSERT_CONFIDENCE,
+                    prepared.confidence_rows,
+                    "confidence sums",
+                ),
             )
             for recorded, statement, rows, what in later_tables:
                 if not (rows and recorded):
@@ -316,6 +338,7 @@ class ResultsWriter(ResultsReader):
                 (MOTION_TABLE, _INSERT_MOTION, _SELECT_MOTION, "ego-motion pairs"),
                 (DRIFT_TABLE, _INSERT_DRIFT, _SELECT_DRIFT, "drift pairs"),
                 (FLICKER_TABLE, _INSERT_FLICKER, _SELECT_FLICKER, "flicker windows"),
+                (CONFIDENCE_TABLE, _INSERT_CONFIDENCE, _SELECT_CONFIDENCE, "confidence sums"),
             ):
                 self._add_later_table(other, table, insert, select, what)
         self._layout = self._read_layout()
