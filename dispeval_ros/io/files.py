@@ -341,21 +341,24 @@ def _check_scale(scale: float | None, path: Path) -> float | None:
     return value
 
 
-def _as_disparity(values: np.ndarray, path: Path) -> np.ndarray:
-    """Check an array from npy/npz/pfm is one real H×W map; return float32."""
+def _as_disparity(values: np.ndarray, path: Path, what: str = "disparity") -> np.ndarray:
+    """Check an array from npy/npz/pfm is one real H×W map; return float32.
+
+    ``what`` names the map in the errors (a confidence is read through this check too).
+    """
     array = values
     if array.ndim == 3 and array.shape[2] == 1:
         array = array[:, :, 0]
     if array.ndim != 2:
         raise InputError(
-            f"{path}: disparity must be one H×W channel, found shape {tuple(values.shape)}"
+            f"{path}: {what} must be one H×W channel, found shape {tuple(values.shape)}"
         )
     if array.size == 0:
-        raise InputError(f"{path}: disparity map is empty, shape {tuple(values.shape)}")
+        raise InputError(f"{path}: {what} map is empty, shape {tuple(values.shape)}")
     if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
-        raise InputError(f"{path}: disparity must be numeric, found dtype {array.dtype}")
+        raise InputError(f"{path}: {what} must be numeric, found dtype {array.dtype}")
     if np.iscomplexobj(array):
-        raise InputError(f"{path}: disparity must be real, found dtype {array.dtype}")
+        raise InputError(f"{path}: {what} must be real, found dtype {array.dtype}")
     return np.ascontiguousarray(array, dtype=np.float32)
 
 
@@ -411,7 +414,7 @@ def read_confidence(path: PathLike) -> np.ndarray:
     """
     file, suffix = _typed_file(path, CONFIDENCE_EXTENSIONS, "confidence")
     if suffix == ".pfm":
-        return _as_disparity(read_pfm(file), file)
+        return _as_disparity(read_pfm(file), file, "confidence")
     data = _read_bytes(file, "confidence")
     if suffix in (".tif", ".tiff"):
         with quiet_opencv():
@@ -422,7 +425,7 @@ def read_confidence(path: PathLike) -> np.ndarray:
         values = _load_npy(data, file) if suffix == ".npy" else _load_npz(data, file)
     else:
         return _decode_image(data, file, "confidence")
-    checked = _as_disparity(values, file)  # one real H×W map, or one line
+    checked = _as_disparity(values, file, "confidence")  # one real H×W map, or one line
     kind = np.asarray(values).dtype
     return np.ascontiguousarray(
         values.reshape(checked.shape), dtype=kind if kind.kind in "ui" else None

@@ -59,3 +59,23 @@ def sparsification_figure(
         if path is not None:
             figure.savefig(path)
     return figure
+
+
+def write_confidence_figures(store: Any, directory: Path) -> list[Path]:
+    """``confidence_<sequence>.png`` per sequence with stored confidence sums (bag --confidence).
+
+    Each method's curves and its oracle's on ``all`` (else the first criterion).
+    """
+    from dispeval_ros.summary import sequence_confidence
+
+    written: list[Path] = []
+    for sequence in store.sequences():
+        found = sequence_confidence(store, sequence)
+        if not found:
+            continue
+        pooled = {method: sums for method, (_, _, sums) in found.items()}
+        criteria = next(iter(pooled.values())).criteria
+        path = directory / f"confidence_{sequence}.png"
+        sparsification_figure(pooled, path, "all" if "all" in criteria else criteria[0])
+        written.append(path)
+    return written

@@ -30,6 +30,7 @@ from dispeval_ros.report.canvas import (
     plain_numbers,
     require_matplotlib,
 )
+from dispeval_ros.report.confidence import write_confidence_figures
 from dispeval_ros.report.data import (
     Selection,
     _grid,
@@ -370,4 +371,5 @@ def write_figures(
         paths += write_temporal_figures(
             directory, temporal_data(store) if temporal is None else temporal
         )
+        paths += write_confidence_figures(store, directory)
     return paths

@@ -95,21 +95,28 @@ ROS_NAMES = FieldNames(
 """How the parameters name :class:`CoreConfig`'s fields in its errors."""
 
 
-def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str, str]:
-    """``NAME:TOPIC`` strings → {name: topic}; names must be usable in topic names."""
+def _named(items: Sequence[str], parameter: str, shape: str, example: str) -> list[tuple[str, str]]:
+    """``NAME:VALUE`` strings → (name, value) pairs split at the first colon (one line if not)."""
     pairs = []
     for item in items:
-        name, sep, topic = (part.strip() for part in item.partition(":"))
-        if not sep or not name or not topic:
+        name, sep, value = (part.strip() for part in item.partition(":"))
+        if not sep or not name or not value:
             raise ConfigurationError(
-                f"parameter {parameter}: '{item}' is not NAME:TOPIC (e.g. sgbm:/stereo/sgbm/disparity)"
+                f"parameter {parameter}: '{item}' is not {shape} (e.g. {example})"
             )
+        pairs.append((name, value))
+    return pairs
+
+
+def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str, str]:
+    """``NAME:TOPIC`` strings → {name: topic}; names must be usable in topic names."""
+    pairs = _named(items, parameter, "NAME:TOPIC", "sgbm:/stereo/sgbm/disparity")
+    for name, _ in pairs:
         if not _METHOD_NAME.fullmatch(name) or "__" in name:
             raise ConfigurationError(
                 f"parameter {parameter}: method name '{name}' must be letters, digits and _ "
                 f"(no leading digit, no __): it becomes part of {NAMESPACE}/NAME/... topics"
             )
-        pairs.append((name, topic))
     methods = ROS_NAMES.unique(pairs, parameter)
     if not methods:
         raise ConfigurationError(
@@ -121,14 +128,7 @@ def parse_methods(items: Sequence[str], parameter: str = "methods") -> dict[str,
 
 def _named_presets(items: Sequence[str]) -> dict[str, str]:
     """``confidence_presets``: ``NAME:PRESET`` strings → {name: preset} (``higher:0:1`` too)."""
-    pairs = []
-    for item in items:
-        name, sep, preset = (part.strip() for part in item.partition(":"))
-        if not sep or not name or not preset:
-            raise ConfigurationError(
-                f"parameter confidence_presets: '{item}' is not NAME:PRESET (e.g. zed_depth:zed)"
-            )
-        pairs.append((name, preset))
+    pairs = _named(items, "confidence_presets", "NAME:PRESET", "zed_depth:zed")
     return ROS_NAMES.unique(pairs, "confidence_presets")
 
 

@@ -149,3 +149,13 @@ def test_plot(files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixt
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     err = failure(run(files, "--confidence-plot", str(png)), capsys)
     assert "need --confidence NAME=FILE" in err
+
+
+def test_a_confidence_file_of_the_wrong_shape_names_the_confidence(tmp_path: Path) -> None:
+    from dispeval_ros.errors import InputError
+    from dispeval_ros.io.files import read_confidence
+
+    path = tmp_path / "conf.npy"
+    np.save(path, np.zeros((2, 3, 4)))
+    with pytest.raises(InputError, match=r"confidence must be one H×W channel, found shape"):
+        read_confidence(path)

@@ -94,6 +94,12 @@ def test_stored_curves_equal_numpy_over_all_pixels_at_once(bag: Path, tmp_path: 
         assert sums.curve("all", "mae").auc == pytest.approx(numpy_auc(rank, error), rel=1e-9)
         oracle = numpy_auc(error, error)  # ranked by the true error
         assert sums.curve("all", "mae").auc_opt == pytest.approx(oracle, rel=2e-2)
+    pytest.importorskip("matplotlib")
+    from dispeval_ros.report.confidence import write_confidence_figures
+
+    (figure,) = write_confidence_figures(reader, tmp_path)
+    assert figure.name == "confidence_drive.png"
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((out / "summary.json").read_text())
     entry = summary["sequences"][0]["confidence"]["sgbm"]
     assert entry["frames"] == 4
