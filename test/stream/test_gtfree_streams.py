@@ -191,7 +191,7 @@ def test_estimate_of_another_size_than_the_images_is_a_method_problem() -> None:
         ({"gt_kind": "none"}, "without ground truth the left image is the frame clock"),
         (
             {"left_image_topic": GT_TOPIC, "right_image_topic": RIGHT_IMAGE},
-            "image and right-view topics must differ",
+            "image, right-view and confidence topics must differ",
         ),
         ({"right_views": {"nobody": "/x"}}, "right-view disparity topics of unknown methods"),
     ],
